@@ -1,0 +1,1 @@
+"""granpipe.figures."""
