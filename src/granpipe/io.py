@@ -1,0 +1,191 @@
+"""netCDF in and out, with provenance and atomic writes (DESIGN.md, "Data conventions").
+
+Every data variable and coordinate written by granpipe carries ``units`` and
+``long_name``; every file carries global attributes naming the granpipe version,
+the git commit, the config subset it depends on (YAML text) and its hash, the
+seeds used, and the creation time. Files are written to a temporary name in the
+target folder and renamed into place, so a killed job never leaves a partial file
+under the final name.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import os
+import subprocess
+import tempfile
+from collections.abc import Iterator, Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+import yaml
+
+from . import __version__
+from .seeds import physics_hash
+
+__all__ = [
+    "git_commit",
+    "provenance_attrs",
+    "check_labels",
+    "atomic_path",
+    "write_dataset",
+    "read_dataset",
+    "write_text",
+    "config_from_attrs",
+]
+
+_ENGINE = "netcdf4"
+
+
+def git_commit() -> str:
+    """The git commit of the granpipe source tree, or ``"unknown"``."""
+    env = os.environ.get("GRANPIPE_GIT_COMMIT")
+    if env:
+        return env
+    here = Path(__file__).resolve().parent
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            cwd=here,
+            capture_output=True,
+            text=True,
+            timeout=5,
+            check=True,
+        )
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=here,
+            capture_output=True,
+            text=True,
+            timeout=5,
+        ).stdout.strip()
+        return out.stdout.strip() + ("-dirty" if dirty else "")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def provenance_attrs(
+    config_subset: Mapping | None = None,
+    seeds: Sequence[int] | int | None = None,
+    **extra,
+) -> dict:
+    """Global attributes of DESIGN.md for a file computed from ``config_subset``.
+
+    Parameters
+    ----------
+    config_subset : mapping, optional
+        The exact configuration the file depends on; stored as YAML text together
+        with the hash used for seeding (:func:`granpipe.seeds.physics_hash`).
+    seeds : int or sequence of int, optional
+        Seeds of the replicas in the file.
+    extra : str, int or float
+        More attributes (study, stage, point, ...).
+    """
+    subset = dict(config_subset or {})
+    attrs = {
+        "granpipe_version": __version__,
+        "git_commit": git_commit(),
+        "config_yaml": yaml.safe_dump(_plain(subset), sort_keys=True),
+        "config_hash": physics_hash(_plain(subset)),
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "Conventions": "CF-1.8",
+    }
+    if seeds is not None:
+        seeds = [int(s) for s in np.atleast_1d(seeds)]
+        # netCDF attributes hold no 64-bit unsigned ints portably; store as text.
+        attrs["seeds"] = " ".join(str(s) for s in seeds)
+    for key, value in extra.items():
+        attrs[key] = value if isinstance(value, (str, int, float)) else str(value)
+    return attrs
+
+
+def _plain(obj):
+    """Convert numpy scalars/arrays and tuples inside a mapping into YAML-safe builtins."""
+    if isinstance(obj, Mapping):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
+def config_from_attrs(ds: xr.Dataset) -> dict:
+    """The config subset stored in a file's ``config_yaml`` attribute."""
+    return yaml.safe_load(ds.attrs.get("config_yaml", "{}")) or {}
+
+
+def check_labels(ds: xr.Dataset) -> None:
+    """Raise ``ValueError`` if a variable or coordinate lacks ``units`` or ``long_name``."""
+    missing = []
+    for name, var in {**ds.data_vars, **ds.coords}.items():
+        for attr in ("units", "long_name"):
+            if attr not in var.attrs:
+                missing.append(f"{name}.{attr}")
+    if missing:
+        raise ValueError("netCDF variables must carry units and long_name; missing: " + ", ".join(missing))
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path in the target's folder; rename it onto ``path`` on success.
+
+    On any exception (or if the process dies) the final name is never created or
+    touched; the temporary file is removed where possible.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    tmp = Path(tmp)
+    try:
+        yield tmp
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def write_dataset(
+    ds: xr.Dataset,
+    path: str | os.PathLike,
+    *,
+    config_subset: Mapping | None = None,
+    seeds: Sequence[int] | int | None = None,
+    **extra_attrs,
+) -> Path:
+    """Write ``ds`` to netCDF-4 at ``path`` atomically, with provenance attributes.
+
+    Every variable and coordinate must carry ``units`` and ``long_name``
+    (:func:`check_labels`). Data variables are zlib-compressed losslessly.
+    """
+    check_labels(ds)
+    ds = ds.copy()
+    ds.attrs = {**ds.attrs, **provenance_attrs(config_subset, seeds, **extra_attrs)}
+    encoding = {
+        name: {"zlib": True, "complevel": 4}
+        for name, var in ds.data_vars.items()
+        if var.dtype.kind in "fiub"
+    }
+    with atomic_path(path) as tmp:
+        ds.to_netcdf(tmp, engine=_ENGINE, format="NETCDF4", encoding=encoding)
+    return Path(path)
+
+
+def read_dataset(path: str | os.PathLike) -> xr.Dataset:
+    """Read a netCDF file fully into memory and close it."""
+    with xr.open_dataset(path, engine=_ENGINE) as ds:
+        return ds.load()
+
+
+def write_text(text: str, path: str | os.PathLike) -> Path:
+    """Write a text file (CSV, YAML) atomically."""
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(text)
+    return Path(path)
