@@ -1,0 +1,44 @@
+# Two commands on a fresh machine (Python 3.11, pip, make):
+#   make reproduce   # .venv + pinned deps + snakemake --cores 2 at the default scale
+#   make test        # .venv + pinned deps + the test suite
+# Both reuse the environment (and numba's on-disk cache) on a second call.
+
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.granpipe-installed
+CORES ?= 2
+# Test selection: everything (physics validations and the real-SLURM test included).
+PYTEST_ARGS ?=
+
+.PHONY: env reproduce test lint bench quick report clean-results
+
+$(STAMP): pyproject.toml constraints.txt
+	@$(PYTHON) -c 'import sys; assert sys.version_info[:2] == (3, 11), "granpipe needs Python 3.11, found " + sys.version' 
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade "pip>=24"
+	$(BIN)/python -m pip install --quiet -c constraints.txt -e ".[test]"
+	touch $(STAMP)
+
+env: $(STAMP)
+
+reproduce: env
+	$(BIN)/snakemake --cores $(CORES)
+
+quick: env
+	$(BIN)/snakemake --cores $(CORES) --configfile config/quick.yaml
+
+test: env
+	$(BIN)/python -m pytest $(PYTEST_ARGS)
+
+lint: env
+	$(BIN)/ruff check . && $(BIN)/ruff format --check . && $(BIN)/snakemake --lint
+
+bench: env
+	$(BIN)/python benchmarks/engine.py
+
+report: env
+	$(BIN)/snakemake --cores $(CORES) --report results/report.zip
+
+clean-results:
+	rm -rf results/default results/quick .snakemake

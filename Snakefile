@@ -1,0 +1,30 @@
+# granpipe workflow: three granular-dynamics studies (SPEC.md), five stages each (DESIGN.md).
+#
+#   snakemake --cores 2                                  # default scale (config/config.yaml)
+#   snakemake --cores 2 --configfile config/quick.yaml   # another scale: that file alone
+#   snakemake --profile workflow/profiles/slurm --configfile config/paper.yaml
+#
+# A scale file given with --configfile is used on its own (not merged over
+# config/config.yaml), so each scale is exactly what its file says.
+
+from granpipe.config import validate as validate_config
+
+if not workflow.config_settings.configfiles:
+
+    configfile: "config/config.yaml"
+
+
+# Stops the workflow before any job runs, naming the bad key (granpipe.errors.ConfigError).
+validate_config(config, f"{workflow.basedir}/workflow/schemas/config.schema.yaml")
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/drum.smk"
+include: "workflow/rules/column.smk"
+include: "workflow/rules/box.smk"
+
+
+rule all:
+    input:
+        all_targets(),
+    default_target: True

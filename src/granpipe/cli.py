@@ -1,0 +1,120 @@
+"""The ``granpipe`` command: ``granpipe <study> <stage> [options]``.
+
+Each study package owns a ``cli.py`` with a :class:`click.Group` named after the
+study, one command per stage (init, runs, ensemble, fits, figures) and extras
+(e.g. ``granpipe drum replica``). Study groups are imported only when invoked, so
+``granpipe --help`` stays fast and does not compile kernels.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import json
+import sys
+
+import click
+
+from . import __version__
+from .config import STUDIES
+from .errors import GranpipeError
+
+__all__ = ["main", "cli", "params_option", "parse_params"]
+
+
+def parse_params(text: str) -> dict:
+    """Parse the ``--params`` JSON text a rule passes (the rule's config subset)."""
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise click.BadParameter(f"not valid JSON: {exc}", param_hint="--params") from None
+    if not isinstance(value, dict):
+        raise click.BadParameter("must be a JSON object", param_hint="--params")
+    return value
+
+
+params_option = click.option(
+    "--params",
+    "params",
+    required=True,
+    callback=lambda ctx, param, value: parse_params(value),
+    help="JSON object: the config subset this stage depends on (rules pass it).",
+)
+"""Shared ``--params JSON`` option for stage commands."""
+
+
+class StudyGroup(click.Group):
+    """Top-level group that imports ``granpipe.<study>.cli`` on demand."""
+
+    def _study_module(self, name):
+        if name not in STUDIES:
+            return None
+        modname = f"granpipe.{name}.cli"
+        if importlib.util.find_spec(modname) is None:
+            return None
+        return importlib.import_module(modname)
+
+    def list_commands(self, ctx):
+        names = set(super().list_commands(ctx))
+        names.update(s for s in STUDIES if importlib.util.find_spec(f"granpipe.{s}.cli"))
+        return sorted(names)
+
+    def get_command(self, ctx, name):
+        cmd = super().get_command(ctx, name)
+        if cmd is not None:
+            return cmd
+        module = self._study_module(name)
+        return getattr(module, "cli", None) if module else None
+
+
+@click.group(cls=StudyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="granpipe")
+def cli():
+    """granpipe: rotating drum, tapped column and vibrated box studies.
+
+    Run a stage with ``granpipe <study> <stage> --help`` for its options; the
+    Snakemake workflow calls these commands with the config subset as --params.
+    """
+
+
+@cli.command("check-config")
+@click.argument("path", type=click.Path(exists=True, dir_okay=False))
+def check_config(path):
+    """Validate a config file against the schemas and print the filled config."""
+    import yaml
+
+    from .config import load
+
+    cfg = load(path)
+    click.echo(yaml.safe_dump(cfg, sort_keys=False))
+
+
+@cli.command("status")
+@click.option("--results", default="results", show_default=True, help="Results root.")
+@click.option("--configfile", default=None, help="Config whose expected batches to compare.")
+def status(results, configfile):
+    """Per study and scale: batches present and missing, latest fitted numbers."""
+    from .status import report
+
+    click.echo(report(results, configfile))
+
+
+def main(argv=None):
+    """Console-script entry point; turns granpipe errors into one clear line and exit 1."""
+    try:
+        cli.main(args=argv, prog_name="granpipe", standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("aborted", err=True)
+        sys.exit(1)
+    except click.ClickException as exc:
+        exc.show()
+        sys.exit(exc.exit_code)
+    except GranpipeError as exc:
+        click.echo(f"granpipe: error: {exc}", err=True)
+        sys.exit(1)
+    except click.exceptions.Exit as exc:
+        sys.exit(exc.exit_code)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

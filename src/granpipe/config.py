@@ -1,0 +1,164 @@
+"""Configuration: load, validate against the workflow's JSON schemas, fill defaults.
+
+The schemas live in ``workflow/schemas/`` (``config.schema.yaml`` for the top level,
+one ``<study>.schema.yaml`` per study, referenced from it). The Snakefile and library
+users go through the same :func:`validate`, so a bad config is rejected with the same
+message whether it reaches Snakemake or Python::
+
+    >>> from granpipe import config
+    >>> cfg = config.load("config/quick.yaml")          # doctest: +SKIP
+    >>> cfg["drum"]["physics"]["dt"]                    # doctest: +SKIP
+
+A rejected config raises :class:`granpipe.errors.ConfigError` whose message names
+the key (dotted path, e.g. ``drum.physics.dt``) and the expected form.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import yaml
+
+from .errors import ConfigError
+
+__all__ = ["schema_dir", "load", "validate", "study_section", "STUDIES"]
+
+STUDIES = ("drum", "column", "box")
+
+
+def schema_dir() -> Path:
+    """Folder of the JSON schemas (``workflow/schemas`` of the source tree).
+
+    ``GRANPIPE_SCHEMA_DIR`` overrides it (for an installed copy without the tree).
+    """
+    env = os.environ.get("GRANPIPE_SCHEMA_DIR")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parents[2] / "workflow" / "schemas"
+
+
+def _key(path) -> str:
+    parts = [str(p) if not isinstance(p, int) else f"[{p}]" for p in path]
+    return ".".join(parts).replace(".[", "[") or "<top level>"
+
+
+def _expected(schema: Mapping) -> str:
+    """A short human description of what a schema accepts."""
+    bits = []
+    if "enum" in schema:
+        bits.append("one of " + ", ".join(repr(v) for v in schema["enum"]))
+    if "type" in schema:
+        t = schema["type"]
+        bits.append(t if isinstance(t, str) else " or ".join(t))
+    for word, sym in (
+        ("exclusiveMinimum", ">"),
+        ("minimum", ">="),
+        ("exclusiveMaximum", "<"),
+        ("maximum", "<="),
+    ):
+        if word in schema:
+            bits.append(f"{sym} {schema[word]}")
+    if "minItems" in schema:
+        bits.append(f"at least {schema['minItems']} item(s)")
+    if "pattern" in schema:
+        bits.append(f"matching {schema['pattern']}")
+    if "description" in schema:
+        bits.append(f"({schema['description'].strip()})")
+    return " ".join(bits) or "see config/README.md"
+
+
+def _message(err) -> str:
+    path = list(err.absolute_path)
+    if err.validator == "additionalProperties":
+        allowed = sorted(err.schema.get("properties", {}))
+        extra = sorted(set(err.instance) - set(allowed))
+        keys = ", ".join(repr(_key([*path, k])) for k in extra)
+        return (
+            f"unknown config key {keys}; allowed keys under '{_key(path)}': "
+            + (", ".join(allowed) if allowed else "none")
+        )
+    if err.validator == "required":
+        missing = err.message.split("'")[1] if "'" in err.message else err.message
+        return f"missing config key '{_key([*path, missing])}'"
+    return (
+        f"config key '{_key(path)}' = {err.instance!r} is invalid: {err.message}; "
+        f"expected {_expected(err.schema)}"
+    )
+
+
+def _check_with_jsonschema(cfg: Mapping, schema_file: Path) -> None:
+    """Collect every violation with its key path (clearer than the first error alone)."""
+    import jsonschema
+    from referencing import Registry, Resource
+
+    schema = yaml.safe_load(schema_file.read_text())
+    base = schema_file.resolve().parent
+
+    def retrieve(uri: str):
+        name = uri.rsplit("/", 1)[-1]
+        return Resource.from_contents(yaml.safe_load((base / name).read_text()))
+
+    schema["$id"] = schema_file.resolve().as_uri()
+    registry = Registry(retrieve=retrieve).with_resource(
+        schema["$id"], Resource.from_contents(schema)
+    )
+    validator = jsonschema.Draft202012Validator(schema, registry=registry)
+    errors = sorted(validator.iter_errors(cfg), key=lambda e: list(map(str, e.absolute_path)))
+    leaf = []
+    for err in errors:
+        # Descend into combinators so the message names the innermost key.
+        best = jsonschema.exceptions.best_match([err, *err.context]) if err.context else err
+        leaf.append(_message(best))
+    if leaf:
+        raise ConfigError("invalid configuration:\n  - " + "\n  - ".join(dict.fromkeys(leaf)))
+
+
+def validate(cfg: dict, schema_file: str | os.PathLike | None = None) -> dict:
+    """Validate ``cfg`` in place against the schemas, filling defaults; return it.
+
+    Uses :func:`snakemake.utils.validate` (which fills schema defaults) after a
+    first pass that reports every violation with its dotted key path.
+
+    Raises
+    ------
+    ConfigError
+        naming each offending key and the expected form.
+    """
+    if not isinstance(cfg, dict):
+        raise ConfigError(f"a config must be a mapping of keys, got {type(cfg).__name__}")
+    schema_file = Path(schema_file) if schema_file else schema_dir() / "config.schema.yaml"
+    _check_with_jsonschema(cfg, schema_file)
+    from snakemake.exceptions import WorkflowError
+    from snakemake.utils import validate as smk_validate
+
+    try:
+        smk_validate(cfg, str(schema_file.resolve()), set_default=True)
+    except WorkflowError as exc:  # pragma: no cover - the first pass catches these
+        raise ConfigError(str(exc)) from exc
+    return cfg
+
+
+def load(path: str | os.PathLike) -> dict:
+    """Read a YAML config file, validate it, fill defaults, and return it."""
+    path = Path(path)
+    try:
+        cfg = yaml.safe_load(path.read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"config file not found: {path}") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"config file {path} is not valid YAML: {exc}") from None
+    if cfg is None:
+        raise ConfigError(f"config file {path} is empty")
+    return validate(cfg)
+
+
+def study_section(cfg: Mapping, study: str) -> dict:
+    """A deep copy of one study's section of a validated config."""
+    if study not in STUDIES:
+        raise ConfigError(f"unknown study '{study}'; known: {', '.join(STUDIES)}")
+    if study not in cfg:
+        raise ConfigError(f"config has no '{study}' section (studies: {cfg.get('studies')})")
+    return copy.deepcopy(cfg[study])
