@@ -76,9 +76,8 @@ def _message(err) -> str:
         allowed = sorted(err.schema.get("properties", {}))
         extra = sorted(set(err.instance) - set(allowed))
         keys = ", ".join(repr(_key([*path, k])) for k in extra)
-        return (
-            f"unknown config key {keys}; allowed keys under '{_key(path)}': "
-            + (", ".join(allowed) if allowed else "none")
+        return f"unknown config key {keys}; allowed keys under '{_key(path)}': " + (
+            ", ".join(allowed) if allowed else "none"
         )
     if err.validator == "required":
         missing = err.message.split("'")[1] if "'" in err.message else err.message

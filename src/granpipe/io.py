@@ -127,7 +127,9 @@ def check_labels(ds: xr.Dataset) -> None:
             if attr not in var.attrs:
                 missing.append(f"{name}.{attr}")
     if missing:
-        raise ValueError("netCDF variables must carry units and long_name; missing: " + ", ".join(missing))
+        raise ValueError(
+            "netCDF variables must carry units and long_name; missing: " + ", ".join(missing)
+        )
 
 
 @contextlib.contextmanager

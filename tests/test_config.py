@@ -1,0 +1,122 @@
+import copy
+
+import pytest
+import yaml
+
+from granpipe import config
+from granpipe.errors import ConfigError
+
+SCALES = ["config/config.yaml", "config/quick.yaml", "config/paper.yaml"]
+
+
+@pytest.fixture(params=SCALES)
+def scale_cfg(request, repo):
+    return yaml.safe_load((repo / request.param).read_text())
+
+
+def _schema_for(path, schema, base):
+    """Resolve the sub-schema that governs key ``path`` (follows $ref to sibling files)."""
+    for key in path:
+        if "$ref" in schema:
+            schema = yaml.safe_load((base / schema["$ref"]).read_text())
+        schema = schema.get("properties", {}).get(key, {})
+    if "$ref" in schema:
+        schema = yaml.safe_load((base / schema["$ref"]).read_text())
+    return schema
+
+
+def _leaves(obj, path=()):
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            yield from _leaves(v, (*path, k))
+    else:
+        yield path, obj
+
+
+def _set(cfg, path, value):
+    node = cfg
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+
+
+def test_every_scale_validates(scale_cfg):
+    filled = config.validate(copy.deepcopy(scale_cfg))
+    assert filled["scale"] == scale_cfg["scale"]
+    assert set(filled["studies"]) <= set(filled)
+
+
+def test_load_fills_defaults_and_matches_validate(repo):
+    a = config.load(repo / "config/quick.yaml")
+    b = config.validate(yaml.safe_load((repo / "config/quick.yaml").read_text()))
+    assert a == b
+
+
+@pytest.mark.parametrize(
+    "mutate, key",
+    [
+        (lambda c: c.update(bogus=1), "'bogus'"),
+        (lambda c: c.update(scale=3), "'scale'"),
+        (lambda c: c.update(studies=[]), "'studies'"),
+        (lambda c: c.update(studies=["drum", "moon"]), "'studies[1]'"),
+        (lambda c: c.update(results=""), "'results'"),
+    ],
+)
+def test_top_level_errors_name_the_key(scale_cfg, mutate, key):
+    cfg = copy.deepcopy(scale_cfg)
+    mutate(cfg)
+    with pytest.raises(ConfigError, match=key.replace("[", r"\[").replace("]", r"\]")):
+        config.validate(cfg)
+
+
+def test_study_listed_without_section_is_rejected(scale_cfg):
+    cfg = copy.deepcopy(scale_cfg)
+    study = cfg["studies"][0]
+    del cfg[study]
+    with pytest.raises(ConfigError, match=f"missing config key '{study}'"):
+        config.validate(cfg)
+
+
+def test_unknown_key_inside_a_study_is_rejected(scale_cfg):
+    cfg = copy.deepcopy(scale_cfg)
+    study = cfg["studies"][0]
+    cfg[study]["no_such_key"] = 1
+    with pytest.raises(ConfigError, match=f"'{study}.no_such_key'"):
+        config.validate(cfg)
+
+
+def test_non_positive_and_mistyped_numbers_are_rejected(scale_cfg, repo):
+    """Every key the schemas require to be > 0 (timesteps, counts) rejects 0 and -1,
+    and every numeric key rejects a string, each time naming the dotted key."""
+    base = repo / "workflow/schemas"
+    top = yaml.safe_load((base / "config.schema.yaml").read_text())
+    positive = 0
+    for path, value in _leaves(scale_cfg):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            continue
+        schema = _schema_for(path, top, base)
+        dotted = ".".join(path)
+        bad_values = ["ten"]
+        if schema.get("exclusiveMinimum") == 0:
+            bad_values += [0, -1]
+            positive += 1
+        for bad in bad_values:
+            cfg = copy.deepcopy(scale_cfg)
+            _set(cfg, path, bad)
+            with pytest.raises(ConfigError, match=f"'{dotted}'"):
+                config.validate(cfg)
+    studies_with_schema = [
+        s
+        for s in scale_cfg["studies"]
+        if yaml.safe_load((base / f"{s}.schema.yaml").read_text()).get("properties")
+    ]
+    if studies_with_schema:
+        assert positive > 0, "no strictly positive key (timestep/count) found in the schemas"
+
+
+def test_missing_and_invalid_files(tmp_path):
+    with pytest.raises(ConfigError, match="not found"):
+        config.load(tmp_path / "nope.yaml")
+    (tmp_path / "bad.yaml").write_text("scale: [unclosed\n")
+    with pytest.raises(ConfigError, match="not valid YAML"):
+        config.load(tmp_path / "bad.yaml")

@@ -1,0 +1,38 @@
+"""The workflow plans at every scale, passes --lint, and refuses a bad config up front."""
+
+import pytest
+import yaml
+
+from .conftest import run_snakemake
+
+SCALES = ["config/config.yaml", "config/quick.yaml", "config/paper.yaml"]
+
+
+@pytest.mark.parametrize("configfile", SCALES)
+def test_dry_run_plans_at_every_scale(configfile):
+    proc = run_snakemake("-n", "--cores", "2", "--configfile", configfile)
+    assert "dry-run" in proc.stdout + proc.stderr
+
+
+@pytest.mark.parametrize("configfile", SCALES)
+def test_lint_is_clean_at_every_scale(configfile):
+    proc = run_snakemake("--lint", "--configfile", configfile, check=False)
+    text = proc.stdout + proc.stderr
+    assert proc.returncode == 0, text
+    assert "Congratulations, your workflow is in a good condition!" in text
+
+
+def test_bad_config_stops_before_any_job_with_key_named(scratch_workflow):
+    cfg = yaml.safe_load((scratch_workflow / "config/quick.yaml").read_text())
+    study = cfg["studies"][0]
+    cfg[study]["not_a_key"] = 1
+    cfg["scale"] = "broken"
+    (scratch_workflow / "config/broken.yaml").write_text(yaml.safe_dump(cfg))
+    proc = run_snakemake(
+        "--cores", "1", "--configfile", "config/broken.yaml", cwd=scratch_workflow, check=False
+    )
+    assert proc.returncode != 0
+    text = proc.stdout + proc.stderr
+    assert f"'{study}.not_a_key'" in text
+    # Nothing ran: no results folder, no job output.
+    assert not (scratch_workflow / "results").exists()
