@@ -35,7 +35,8 @@ def _summary_lines(csv: Path, limit: int = 12) -> list[str]:
         ci = ""
         if pd.notna(getattr(row, "ci_low", None)) and pd.notna(getattr(row, "ci_high", None)):
             ci = f"  CI [{row.ci_low:.4g}, {row.ci_high:.4g}]"
-        paper = f"  (paper {row.paper_value})" if pd.notna(getattr(row, "paper_value", None)) else ""
+        paper_value = getattr(row, "paper_value", None)
+        paper = f"  (paper {paper_value})" if pd.notna(paper_value) else ""
         unit = row.unit if isinstance(row.unit, str) else ""
         lines.append(f"    {row.quantity} = {row.value:.6g} {unit}{ci}{paper}")
     if len(table) > limit:
