@@ -152,3 +152,19 @@ def test_reduce_batch_files(tmp_path):
     assert "scalar_mean" not in out
     assert out.attrs["n_replicas"] == x.shape[0]
     write_dataset(out, tmp_path / "ensemble.nc")  # every variable labelled
+
+
+def test_replica_mean_sem_and_pooled_batch_mean():
+    from granpipe.analysis.ensemble import pooled_batch_mean, replica_mean_sem
+
+    rng = np.random.default_rng(5)
+    x = rng.normal(2.0, 1.5, size=(4000, 3))
+    m, s, c = replica_mean_sem(x)
+    np.testing.assert_allclose(m, x.mean(0), rtol=1e-13)
+    np.testing.assert_allclose(s, x.std(0, ddof=1) / np.sqrt(4000), rtol=1e-12)
+    bm = x.reshape(200, 20, 3).mean(1)
+    pm, ps, pc = pooled_batch_mean(bm, np.full(bm.shape, 20))
+    np.testing.assert_allclose(pm, m, rtol=1e-13)
+    np.testing.assert_array_equal(pc, 4000)
+    # The batch-scatter SEM estimates the same quantity (200 batches: ~5 % noise).
+    np.testing.assert_allclose(ps, s, rtol=0.2)

@@ -24,7 +24,13 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 import xarray as xr
 
-__all__ = ["EnsembleAccumulator", "batch_moments", "reduce_batch_files"]
+__all__ = [
+    "EnsembleAccumulator",
+    "batch_moments",
+    "replica_mean_sem",
+    "pooled_batch_mean",
+    "reduce_batch_files",
+]
 
 
 def batch_moments(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -55,6 +61,50 @@ def batch_moments(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     dev = np.where(finite, x - mean, 0.0)
     m2 = (dev * dev).sum(axis=0)
     return count, mean, m2
+
+
+def replica_mean_sem(replicas: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean, standard error and count over axis 0 of (replica, time) data, ignoring NaN.
+
+    Returns (mean, sem, count), each (time,); sem is ``NaN`` where count < 2.
+    """
+    count, mean, m2 = batch_moments(replicas)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sem = np.where(count > 1, np.sqrt(m2 / (count - 1) / count), np.nan)
+    return mean, sem, count
+
+
+def pooled_batch_mean(
+    batch_means: np.ndarray, batch_counts: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pooled mean of batch means, with its standard error from the batch scatter.
+
+    Parameters
+    ----------
+    batch_means : (batch, time) float, NaN where a batch has no sample
+    batch_counts : (batch, time) int, replicas per batch and time point
+
+    Returns
+    -------
+    mean : (time,) count-weighted mean Σ c_b m_b / Σ c_b (the ensemble mean)
+    sem : (time,) standard error of that mean estimated from the scatter of the
+        batch means (ratio-estimator variance,
+        ``nb/(nb-1) Σ c_b² (m_b − mean)² / (Σ c_b)²``; NaN with < 2 batches)
+    count : (time,) total replicas
+    """
+    m = np.asarray(batch_means, dtype=np.float64)
+    c = np.asarray(batch_counts, dtype=np.float64)
+    has = (c > 0) & np.isfinite(m)
+    c = np.where(has, c, 0.0)
+    mz = np.where(has, m, 0.0)
+    total = c.sum(axis=0)
+    nb = has.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = (c * mz).sum(axis=0) / total
+        dev = np.where(has, mz - mean, 0.0)
+        var = nb / (nb - 1.0) * (c * c * dev * dev).sum(axis=0) / (total * total)
+        sem = np.where(nb > 1, np.sqrt(var), np.nan)
+    return mean, sem, total.astype(np.int64)
 
 
 class EnsembleAccumulator:

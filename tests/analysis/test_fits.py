@@ -1,0 +1,207 @@
+"""Drum fits: vertex, zero crossing, auto windows, bootstrap coverage, lag."""
+
+import numpy as np
+import pytest
+
+from granpipe.analysis.fits import (
+    FitResult,
+    avalanche_lag,
+    bootstrap_batches,
+    bootstrap_replicas,
+    first_crossing,
+    lag,
+    polyfit_window,
+    vertex_time,
+    vertex_times,
+    zero_crossing_time,
+    zero_crossing_times,
+)
+
+T_GRID = np.arange(0.0, 6.0, 0.01)
+
+
+def test_polyfit_recovers_exact_polynomial_and_ignores_nan():
+    t = T_GRID
+    y = 0.3 - 1.2 * (t - 2.5) + 0.7 * (t - 2.5) ** 2
+    y[150] = np.nan
+    coef, cov, chi2, n, t_ref = polyfit_window(t, y, (1.0, 4.0), 2, t_ref=2.5)
+    np.testing.assert_allclose(coef, [0.3, -1.2, 0.7], atol=1e-10)
+    assert n == 300  # 301 samples in [1, 4] minus the NaN
+
+
+def test_vertex_and_zero_exact():
+    t = T_GRID
+    V = 5.0 + 3.0 * (t - 2.628) ** 2
+    r = vertex_time(t, V, (1.0, 4.0))
+    assert r.value == pytest.approx(2.628, abs=1e-10)
+    assert r.fit_error < 1e-8 and r.window == (1.0, 4.0)
+    lam = 0.8 * (t - 4.5)
+    z = zero_crossing_time(t, lam, (3.0, 5.5), quantity="q", unit="t0")
+    assert z.value == pytest.approx(4.5, abs=1e-12) and z.unit == "t0" and z.quantity == "q"
+
+
+@pytest.mark.parametrize("weighted", [False, True])
+def test_vertex_fit_error_consistent_with_scatter(weighted):
+    rng = np.random.default_rng(11)
+    t = T_GRID
+    # The residual-scaled (unweighted) error assumes equal noise everywhere; the
+    # weighted one is tested with heteroscedastic noise.
+    noise = 0.05 * (1 + t / 3) if weighted else np.full(t.size, 0.08)
+    Y = 5.0 + 3.0 * (t - 2.628) ** 2 + noise * rng.normal(size=(3000, t.size))
+    val, err, ex = vertex_times(t, Y, (1.0, 4.0), noise if weighted else None)
+    assert abs(np.mean(val) - 2.628) < 3 * np.std(val) / np.sqrt(len(val))
+    ratio = np.std(val, ddof=1) / np.median(err)
+    assert 0.93 < ratio < 1.07, ratio
+    assert np.median(ex["chi2_red"]) == pytest.approx(1.0, abs=0.05) if weighted else True
+
+
+def test_zero_crossing_fit_error_consistent_with_scatter():
+    rng = np.random.default_rng(12)
+    t = T_GRID
+    Y = 0.4 * (t - 4.1) + 0.2 * rng.normal(size=(3000, t.size))
+    val, err, _ = zero_crossing_times(t, Y, (3.0, 5.5))
+    ratio = np.std(val, ddof=1) / np.median(err)
+    assert 0.93 < ratio < 1.07, ratio
+    assert abs(np.mean(val) - 4.1) < 4 * np.std(val) / np.sqrt(len(val))
+
+
+def test_inflation_when_sigma_too_small():
+    rng = np.random.default_rng(13)
+    t = T_GRID
+    Y = 0.4 * (t - 4.1) + 0.2 * rng.normal(size=(500, t.size))
+    _, err_auto, ex = zero_crossing_times(t, Y, (3.0, 5.5), np.full(t.size, 0.02))
+    _, err_abs, _ = zero_crossing_times(
+        t, Y, (3.0, 5.5), np.full(t.size, 0.02), error_scale="absolute"
+    )
+    assert np.median(ex["chi2_red"]) > 50
+    assert np.median(err_auto / err_abs) == pytest.approx(10.0, rel=0.1)
+
+
+def test_first_crossing_and_directions():
+    t = np.linspace(0, 10, 1001)
+    y = np.sin(t)  # crossings at pi (down), 2pi (up), 3pi (down)
+    assert first_crossing(t, y, (1, 10), -1) == pytest.approx(np.pi, abs=1e-4)
+    assert first_crossing(t, y, (1, 10), +1) == pytest.approx(2 * np.pi, abs=1e-4)
+    assert first_crossing(t, y, (4, 10), 0) == pytest.approx(2 * np.pi, abs=1e-4)
+    assert np.isnan(first_crossing(t, y, (4, 6), 0))
+    both = first_crossing(t, np.stack([y, -y]), (1, 10), +1)
+    np.testing.assert_allclose(both, [2 * np.pi, np.pi], atol=1e-4)
+
+
+def test_auto_windows():
+    rng = np.random.default_rng(3)
+    t = np.arange(0, 30, 0.004)
+    V = 10 + 2 * (t - 2.628) ** 2 + 0.01 * rng.normal(size=t.size)
+    r = vertex_time(t, V, "auto", half_width=1.5, search=(0.5, 6.0), smooth_q=10)
+    assert r.window[0] == pytest.approx(2.628 - 1.5, abs=0.05)
+    assert r.value == pytest.approx(2.628, abs=5 * r.fit_error + 1e-3)
+    lam = np.tanh((t - 14.5) / 4) + 0.2 * rng.normal(size=t.size)
+    z = zero_crossing_time(t, lam, "auto", half_width=2.0, search=(5, 25), smooth_q=62, direction=1)
+    assert z.value == pytest.approx(14.5, abs=4 * z.fit_error)
+    assert abs(0.5 * (z.window[0] + z.window[1]) - 14.5) < 0.3
+    assert "auto" in z.method
+
+
+def test_lag_combines_errors():
+    a = FitResult("sign_change_time", 14.5, 0.2, "s", n=10)
+    b = FitResult("onset_time", 2.6, 0.05, "s")
+    d = lag(a, b)
+    assert d.value == pytest.approx(11.9) and d.fit_error == pytest.approx(np.hypot(0.2, 0.05))
+    assert lag(a, 5.0).fit_error == 0.2
+
+
+def _replicas(rng, R, t, mean_vertex=2.6):
+    a = rng.normal(mean_vertex, 0.3, size=(R, 1))
+    return 5 + 3 * (t - a) ** 2 + 0.5 * rng.normal(size=(R, t.size))
+
+
+def test_bootstrap_coverage_vertex():
+    """90 % percentile CI over replicas covers the population vertex at ~90 %."""
+    t = np.arange(0.0, 5.0, 0.02)
+    rng = np.random.default_rng(2024)
+    draws, covered = 200, 0
+    for d in range(draws):
+        X = _replicas(rng, 40, t)
+        boot = bootstrap_replicas(
+            X, lambda m: vertex_times(t, m, (1.0, 4.0))[0], n_resamples=400, seed=d
+        )
+        covered += boot.ci_low[0] <= 2.6 <= boot.ci_high[0]
+    rate = covered / draws
+    # Binomial sd at 0.9 over 200 draws is 0.021; allow 3 sd.
+    assert 0.836 <= rate <= 0.964, rate
+
+
+def test_bootstrap_reproducible_and_batches_of_one_equal_replicas():
+    t = np.arange(0.0, 5.0, 0.02)
+    X = _replicas(np.random.default_rng(0), 30, t)
+
+    def stat(m):
+        return vertex_times(t, m, (1.0, 4.0))[0]
+
+    a = bootstrap_replicas(X, stat, n_resamples=300, seed=5)
+    b = bootstrap_replicas(X, stat, n_resamples=300, seed=5, chunk=64)
+    np.testing.assert_array_equal(a.samples[:64], b.samples[:64])
+    c = bootstrap_batches(X, np.ones_like(X), stat, n_resamples=300, seed=5)
+    np.testing.assert_allclose(c.samples, a.samples, rtol=1e-12)
+    assert a.n == 30 and a.n_resamples == 300 and a.n_failed[0] == 0
+
+
+def test_bootstrap_batches_width_matches_replica_bootstrap():
+    t = np.arange(0.0, 5.0, 0.02)
+    X = _replicas(np.random.default_rng(1), 400, t)
+    stat = lambda m: vertex_times(t, m, (1.0, 4.0))[0]  # noqa: E731
+    rep = bootstrap_replicas(X, stat, n_resamples=500, seed=1)
+    bm = X.reshape(40, 10, -1).mean(axis=1)
+    bat = bootstrap_batches(bm, np.full(bm.shape, 10), stat, n_resamples=500, seed=1)
+    assert bat.std[0] == pytest.approx(rep.std[0], rel=0.25)
+
+
+def _drum_like(rng, R, t, onset=2.6, sign=9.0):
+    a = rng.normal(onset, 0.2, size=(R, 1))
+    z = rng.normal(sign, 1.0, size=(R, 1))
+    V = 5 + 3 * (t - a) ** 2 + 0.3 * rng.normal(size=(R, t.size))
+    lam = 0.5 * (t - z) + 2.0 * rng.normal(size=(R, t.size))
+    return V, lam
+
+
+def test_avalanche_lag_onset_and_decay():
+    t = np.arange(0.0, 15.0, 0.02)
+    rng = np.random.default_rng(7)
+    V, lam = _drum_like(rng, 60, t)
+    V[:5, -100:] = np.nan  # shorter records
+    res = avalanche_lag(t, V, lam, state_window=(1, 4), sign_window=(6, 12), n_resamples=300,
+                        seed=1, prefix="onset_")  # fmt: skip
+    assert set(res) == {"change_time", "sign_change_time", "lag"}
+    on, sc, lg = res["change_time"], res["sign_change_time"], res["lag"]
+    assert on.quantity == "onset_change_time" and lg.n == 60
+    assert lg.value == pytest.approx(sc.value - on.value)
+    for r, truth in ((on, 2.6), (sc, 9.0), (lg, 6.4)):
+        assert r.ci_low < r.value < r.ci_high
+        half = 0.5 * (r.ci_high - r.ci_low)
+        assert abs(r.value - truth) < 3 * half
+    # Decay: the state change is imposed at exactly 5 s.
+    dec = avalanche_lag(t, V, lam, state_time=5.0, sign_window=(6, 12), n_resamples=100, seed=1)
+    assert "change_time" not in dec and dec["lag"].value == pytest.approx(sc.value - 5.0)
+    assert dec["lag"].ci_high - dec["lag"].ci_low == pytest.approx(
+        dec["sign_change_time"].ci_high - dec["sign_change_time"].ci_low
+    )
+
+
+def test_avalanche_lag_auto_and_batches():
+    t = np.arange(0.0, 15.0, 0.02)
+    rng = np.random.default_rng(8)
+    V, lam = _drum_like(rng, 200, t)
+    res = avalanche_lag(t, V, lam, state_window="auto", sign_window="auto", half_width=1.5,
+                        state_search=(0.5, 5), sign_search=(5, 14), smooth_q=12, direction=1,
+                        n_resamples=200, seed=2)  # fmt: skip
+    assert res["change_time"].value == pytest.approx(2.6, abs=0.1)
+    assert res["sign_change_time"].value == pytest.approx(9.0, abs=0.5)
+    bm, bc = V.reshape(20, 10, -1).mean(1), np.full((20, t.size), 10)
+    lm = lam.reshape(20, 10, -1).mean(1)
+    kw = dict(sign_window=(6, 12), weighted=False)
+    bat = avalanche_lag(t, bm, lm, batch_counts=bc, n_resamples=200, seed=2, **kw)
+    assert bat["lag"].n == 200
+    # Same pooled mean, same unweighted fit as from the replicas themselves.
+    rep = avalanche_lag(t, V, lam, n_resamples=0, **kw)
+    assert bat["change_time"].value == pytest.approx(rep["change_time"].value, rel=1e-9)
+    assert np.isnan(rep["lag"].ci_low) and bat["lag"].ci_low < bat["lag"].value
