@@ -169,8 +169,16 @@ def test_avalanche_lag_onset_and_decay():
     rng = np.random.default_rng(7)
     V, lam = _drum_like(rng, 60, t)
     V[:5, -100:] = np.nan  # shorter records
-    res = avalanche_lag(t, V, lam, state_window=(1, 4), sign_window=(6, 12), n_resamples=300,
-                        seed=1, prefix="onset_")  # fmt: skip
+    res = avalanche_lag(
+        t,
+        V,
+        lam,
+        state_window=(1, 4),
+        sign_window=(6, 12),
+        n_resamples=300,
+        seed=1,
+        prefix="onset_",
+    )
     assert set(res) == {"change_time", "sign_change_time", "lag"}
     on, sc, lg = res["change_time"], res["sign_change_time"], res["lag"]
     assert on.quantity == "onset_change_time" and lg.n == 60
@@ -191,9 +199,20 @@ def test_avalanche_lag_auto_and_batches():
     t = np.arange(0.0, 15.0, 0.02)
     rng = np.random.default_rng(8)
     V, lam = _drum_like(rng, 200, t)
-    res = avalanche_lag(t, V, lam, state_window="auto", sign_window="auto", half_width=1.5,
-                        state_search=(0.5, 5), sign_search=(5, 14), smooth_q=12, direction=1,
-                        n_resamples=200, seed=2)  # fmt: skip
+    res = avalanche_lag(
+        t,
+        V,
+        lam,
+        state_window="auto",
+        sign_window="auto",
+        half_width=1.5,
+        state_search=(0.5, 5),
+        sign_search=(5, 14),
+        smooth_q=12,
+        direction=1,
+        n_resamples=200,
+        seed=2,
+    )
     assert res["change_time"].value == pytest.approx(2.6, abs=0.1)
     assert res["sign_change_time"].value == pytest.approx(9.0, abs=0.5)
     bm, bc = V.reshape(20, 10, -1).mean(1), np.full((20, t.size), 10)
