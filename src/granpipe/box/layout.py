@@ -1,0 +1,173 @@
+"""Where the box study's files live, and which parameter points a config section asks for.
+
+One source of truth for ``workflow/rules/box.smk`` (its target lists and wildcards) and
+``granpipe status`` (:func:`run_files`). Paths are relative to ``results/<scale>/box/``.
+
+A *parameter point* is ``(N_l, Gamma, init)``, named ``N_l=20,Gamma=2.2,init=crystal``
+(:func:`point_name`). An *initial state* is ``(N_l, init)``, named ``N_l=20,init=crystal``;
+every Γ of one ``(N_l, init, replica)`` starts from the same prepared state, so that
+thresholds in Γ compare like with like. A run of ``measured_periods`` periods is split in
+consecutive *parts* of ``periods_per_part`` periods (part 0 also carries the ramp and the
+transient); part ``p`` continues from the final state stored in part ``p - 1``.
+
+    >>> point_name(20, 2.2, "crystal")
+    'N_l=20,Gamma=2.2,init=crystal'
+    >>> parse_point("N_l=20,Gamma=2.2,init=crystal")
+    (20, 2.2, 'crystal')
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+
+__all__ = [
+    "INITS",
+    "gamma_text",
+    "point_name",
+    "state_name",
+    "parse_point",
+    "init_states",
+    "points",
+    "n_parts",
+    "part_periods",
+    "init_file",
+    "replicas",
+    "point_run_files",
+    "run_file",
+    "run_files",
+    "init_files",
+    "ensemble_file",
+    "ensemble_files",
+    "FIGURES",
+    "figure_files",
+    "FITS",
+    "fit_files",
+    "POINT_RE",
+]
+
+INITS = ("crystal", "random")
+
+POINT_RE = re.compile(r"^N_l=(\d+),Gamma=([0-9.eE+-]+),init=(crystal|random)$")
+
+
+def gamma_text(gamma: float) -> str:
+    """Shortest text that reads back as the same float (``repr``): 2.2 -> '2.2', 1 -> '1.0'."""
+    return repr(float(gamma))
+
+
+def point_name(n_l: int, gamma: float, init: str) -> str:
+    """Name of a parameter point, e.g. ``N_l=20,Gamma=2.2,init=crystal``."""
+    if init not in INITS:
+        raise ValueError(f"init must be one of {INITS}, got {init!r}")
+    return f"N_l={int(n_l)},Gamma={gamma_text(gamma)},init={init}"
+
+
+def state_name(n_l: int, init: str) -> str:
+    """Name of a prepared initial state, e.g. ``N_l=20,init=random``."""
+    if init not in INITS:
+        raise ValueError(f"init must be one of {INITS}, got {init!r}")
+    return f"N_l={int(n_l)},init={init}"
+
+
+def parse_point(name: str) -> tuple[int, float, str]:
+    """Inverse of :func:`point_name`: ``(N_l, Gamma, init)``."""
+    m = POINT_RE.match(name)
+    if not m:
+        raise ValueError(f"not a box point name: {name!r} (expected N_l=..,Gamma=..,init=..)")
+    return int(m.group(1)), float(m.group(2)), m.group(3)
+
+
+def init_states(section: Mapping) -> list[tuple[int, str]]:
+    """``(N_l, init)`` pairs of the grid, in config order."""
+    grid = section["grid"]
+    return [(int(n_l), init) for n_l in grid["N_l"] for init in grid["inits"]]
+
+
+def points(section: Mapping) -> list[tuple[int, float, str]]:
+    """``(N_l, Gamma, init)`` of every parameter point the grid asks for, in config order."""
+    grid = section["grid"]
+    return [
+        (int(n_l), float(g), init)
+        for n_l in grid["N_l"]
+        for init in grid["inits"]
+        for g in grid["Gamma"]
+    ]
+
+
+def n_parts(section: Mapping) -> int:
+    """Number of consecutive run files per point and replica."""
+    proto = section["protocol"]
+    return max(1, math.ceil(int(proto["measured_periods"]) / int(proto["periods_per_part"])))
+
+
+def part_periods(section: Mapping, part: int) -> range:
+    """Measured-period indices (0-based, after the transient) covered by ``part``."""
+    proto = section["protocol"]
+    m, p = int(proto["measured_periods"]), int(proto["periods_per_part"])
+    if not 0 <= part < n_parts(section):
+        raise ValueError(f"part {part} out of range 0..{n_parts(section) - 1}")
+    return range(part * p, min(m, (part + 1) * p))
+
+
+def replicas(section: Mapping) -> range:
+    return range(int(section["grid"]["replicas"]))
+
+
+def init_file(n_l: int, init: str, replica: int) -> str:
+    return f"init/{state_name(n_l, init)}/replica_{int(replica):04d}.nc"
+
+
+def run_file(n_l: int, gamma: float, init: str, replica: int, part: int) -> str:
+    return f"runs/{point_name(n_l, gamma, init)}/replica_{int(replica):04d}.part_{int(part):03d}.nc"
+
+
+def ensemble_file(n_l: int, gamma: float, init: str) -> str:
+    return f"ensemble/{point_name(n_l, gamma, init)}.nc"
+
+
+def init_files(section: Mapping) -> list[str]:
+    """Prepared initial states (relative to ``results/<scale>/box/``)."""
+    return [init_file(n, i, r) for n, i in init_states(section) for r in replicas(section)]
+
+
+def run_files(section: Mapping) -> list[str]:
+    """Every run file a config section asks for (relative to ``results/<scale>/box/``)."""
+    return [
+        run_file(n, g, i, r, p)
+        for n, g, i in points(section)
+        for r in replicas(section)
+        for p in range(n_parts(section))
+    ]
+
+
+def point_run_files(section: Mapping, n_l: int, gamma: float, init: str) -> list[str]:
+    """The run files of one point (all replicas, all parts)."""
+    return [
+        run_file(n_l, gamma, init, r, p) for r in replicas(section) for p in range(n_parts(section))
+    ]
+
+
+def ensemble_files(section: Mapping) -> list[str]:
+    return [ensemble_file(n, g, i) for n, g, i in points(section)]
+
+
+FITS = ("fits/phase_diagram.nc", "fits/temperature.nc", "fits/slips.nc", "fits/summary.csv")
+"""Outputs of the fits stage."""
+
+FIGURES = {
+    1: "fig1_snapshots",
+    3: "fig3_phase_diagram",
+    4: "fig4_granular_temperature",
+    5: "fig5_slip_probability",
+}
+"""Figure number -> file stem (PNG and PDF of each)."""
+
+
+def fit_files() -> list[str]:
+    return list(FITS)
+
+
+def figure_files(kind: str = "png") -> list[str]:
+    return [f"figures/{stem}.{kind}" for stem in FIGURES.values()]
