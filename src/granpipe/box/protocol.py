@@ -1,0 +1,344 @@
+"""The vibrated-box protocol of one parameter point (SPEC §3 "Drive", Appendix B).
+
+One run of a point ``(N_l, Γ, init)`` and replica, in order:
+
+1. Start from the prepared state (:mod:`granpipe.box.prepare`), bed resting on the plate
+   at ``z = 0``, time ``t = 0``. Shear histories of the settled packing are not carried
+   into the run (the drive starts from positions, velocities and spins).
+2. Drive the plate, ``z_b(t) = z0 + A r(t) sin(ωt + φ)`` with ``A = Γ g/ω²``
+   (:func:`granpipe.box.model.drive_for`). Smooth start (SPEC §3 hazard (i)): with
+   ``start_phase = sine`` and a ramp ``r(t) = min(t/t_ramp, 1)`` the plate velocity is
+   continuous (zero) at ``t = 0`` and grows linearly; with ``start_phase = bottom``
+   (``φ = -π/2``) the plate starts at rest at its lowest point.
+3. Transient: until the drive phase ``ωt + φ`` reaches ``2π n_transient`` (ramp included);
+   sampled at the same phases as the measurement (bed centre of mass, plate, gap, T_g)
+   so that launch speeds can be read (hazard (ii)).
+4. Measured periods ``j``, each starting at drive phase ``2π(n_transient + j)`` (plate at
+   mid-height moving up, the cycle start of Eq. (1)). At ``N_k`` equally spaced phases
+   ``k`` per period: tracer heights ``z_j^i(k)`` (Eqs. B1, B3), plate height ``z_b(k)``,
+   gap under the bed, disks touching the plate, instantaneous granular temperature
+   (Eq. 2), bed centre of mass. At every cycle start, all positions (float32), for slips
+   (Sec. V) and ψ6/ψ4. Tracers: the row closest to mid-height of the bed at the start of
+   the measurement (:func:`granpipe.analysis.box.select_tracers`).
+
+A long run is a chain of *parts* (``periods_per_part`` periods each); part ``p``
+continues from the engine state saved at the end of part ``p - 1`` (shear histories and
+neighbour list included), so a chained run is bit-identical to an unchained one.
+
+Time step: :func:`granpipe.box.model.steps_per_period` (Δt = t_c/50 rounded down so that
+every sampling phase falls on a step).
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..analysis import box as ab
+from ..engine import FlatWalls
+from . import model
+from .prepare import box_simulation, disk_arrays
+
+__all__ = [
+    "PartResult",
+    "run_part",
+    "state_arrays",
+    "restore_state",
+    "Progress",
+]
+
+
+# ----------------------------------------------------------------- engine state I/O
+# The engine has no public save/restore of a State yet; these two functions read and
+# write its storage dict (``State._s``) so that a run can continue across files exactly.
+_STATE_SCALARS = ("dt", "skin", "has_tangent")
+
+
+def state_arrays(state) -> dict[str, np.ndarray]:
+    """Every array of an engine :class:`~granpipe.engine.State` (copies), plus its scalars."""
+    out = {}
+    for key, val in state._s.items():
+        if isinstance(val, np.ndarray):
+            out[key] = val.copy()
+    for key in _STATE_SCALARS:
+        out[key] = np.asarray(state._s[key])
+    return out
+
+
+def restore_state(sim, positions: np.ndarray, arrays: Mapping[str, np.ndarray]):
+    """A state of ``sim`` whose storage is overwritten by ``arrays`` (from :func:`state_arrays`).
+
+    ``positions`` only sizes the template state; every array is then replaced, so the
+    continued run is bit-identical to one that never stopped.
+    """
+    n = positions.shape[0]
+    radii, masses = disk_arrays(n)
+    state = sim.new_state(positions, radii, masses)
+    for key, val in state._s.items():
+        if isinstance(val, np.ndarray):
+            saved = np.asarray(arrays[key])
+            if saved.shape != val.shape:
+                raise ValueError(
+                    f"saved engine array {key!r} has shape {saved.shape}, expected {val.shape}"
+                )
+            val[...] = saved
+    state._s["dt"] = float(arrays["dt"])
+    state._s["skin"] = float(arrays["skin"])
+    state._s["has_tangent"] = bool(arrays["has_tangent"])
+    return state
+
+
+# ----------------------------------------------------------------------- progress
+class Progress:
+    """Progress lines every ``every`` seconds of wall time: period k of n, t, elapsed, ETA."""
+
+    def __init__(self, log: Callable[[str], None] | None, total_steps: int, label: str,
+                 every: float = 30.0):  # fmt: skip
+        self.log = log
+        self.total = max(int(total_steps), 1)
+        self.label = label
+        self.every = every
+        self.start = _time.perf_counter()
+        self.last = self.start
+        self.done = 0
+
+    def update(self, steps: int, text: str, sim_time: float) -> None:
+        self.done += steps
+        now = _time.perf_counter()
+        if self.log is None or now - self.last < self.every:
+            return
+        self.last = now
+        elapsed = now - self.start
+        eta = elapsed * (self.total - self.done) / max(self.done, 1)
+        self.log(
+            f"{self.label}: {text}, t = {sim_time:.2f} t0, elapsed {elapsed:.0f} s, "
+            f"remaining ~{eta:.0f} s"
+        )
+
+
+# -------------------------------------------------------------------------- a part
+@dataclass
+class PartResult:
+    """What one part of a run recorded (arrays; :mod:`granpipe.box.stages` labels them).
+
+    Shapes: P periods in the part, N_k phases, N_t tracers, N disks, S transient samples.
+    """
+
+    periods: np.ndarray  # (P,) measured-period indices
+    time: np.ndarray  # (P, N_k) [t0]
+    z_plate: np.ndarray  # (P, N_k) [σ]
+    z_tracers: np.ndarray  # (P, N_k, N_t) [σ]
+    bed_gap: np.ndarray  # (P, N_k) [σ]
+    plate_contacts: np.ndarray  # (P, N_k) int
+    granular_temperature: np.ndarray  # (P, N_k) [mgσ]
+    z_cm: np.ndarray  # (P, N_k) [σ]
+    vz_cm: np.ndarray  # (P, N_k) [σ/t0]
+    cycle_positions: np.ndarray  # (P + 1, N, 2) float32 [σ], starts of periods j..j+P
+    tracers: np.ndarray  # (N_t,) int
+    final_state: dict  # engine arrays at the end of the part
+    transient: dict | None  # part 0: (S,) arrays time, z_plate, v_plate, z_cm, vz_cm, ...
+    dt: float
+    steps_per_period: int
+    steps: int
+    wall_seconds: float
+    drive: model.Drive
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def ns_per_particle_step(self) -> float:
+        n = self.cycle_positions.shape[1]
+        return 1e9 * self.wall_seconds / max(self.steps * n, 1)
+
+
+def _walls(physics: Mapping, drive: model.Drive) -> FlatWalls:
+    return FlatWalls(
+        x_left=0.0,
+        x_right=float(physics["Lx"]),
+        bottom=True,
+        z0=drive.z0,
+        amplitude=drive.amplitude,
+        omega=drive.omega,
+        phase=drive.phase,
+        ramp_start=0.0,
+        ramp_time=drive.ramp_time,
+    )
+
+
+def _sample(state, walls: FlatWalls, t: float):
+    """(z_b, positions view, velocities view, gap, plate contacts, T_g, z_cm, vz_cm)."""
+    pos = state.positions
+    vel = state.velocities
+    zb = float(walls.height(t))
+    zmin_bottom = pos[:, 1] - 0.5 * model.DIAMETER
+    gap = float(zmin_bottom.min() - zb)
+    contacts = int(np.count_nonzero(zmin_bottom < zb))
+    tg = float(ab.granular_temperature(vel, model.MASS))
+    return zb, pos, vel, gap, contacts, tg, float(pos[:, 1].mean()), float(vel[:, 1].mean())
+
+
+def run_part(
+    physics: Mapping,
+    protocol: Mapping,
+    gamma: float,
+    part: int,
+    periods: range,
+    *,
+    start_positions: np.ndarray | None = None,
+    start_velocities: np.ndarray | None = None,
+    start_spins: np.ndarray | None = None,
+    previous_state: Mapping | None = None,
+    tracers: np.ndarray | None = None,
+    log: Callable[[str], None] | None = None,
+    label: str = "box",
+) -> PartResult:
+    """Run one part of a point's protocol.
+
+    Parameters
+    ----------
+    physics, protocol : mapping
+        ``box.physics`` and ``box.protocol`` (only ``start_phase``, ``ramp_periods``,
+        ``transient_periods``, ``phases_per_period`` are read here).
+    gamma : float
+        Γ = Aω²/g.
+    part : int
+        0 starts from ``start_*`` (the prepared state at t = 0) and runs the transient;
+        ``p > 0`` continues from ``previous_state`` (engine arrays of part ``p - 1``) with
+        the tracers of part ``p - 1``.
+    periods : range
+        Measured-period indices of this part (consecutive).
+    log : callable, optional
+        Receives progress lines (every ~30 s wall).
+
+    Raises
+    ------
+    SimulationError
+        From the engine, unchanged (the caller adds study/point/replica/seed).
+    """
+    n_k = int(protocol["phases_per_period"])
+    steps_per, dt = model.steps_per_period(physics, n_k)
+    chunk = steps_per // n_k
+    drive = model.drive_for(physics, protocol, gamma)
+    walls = _walls(physics, drive)
+    sim = box_simulation(physics, dt, walls)
+    n_tr = int(protocol["transient_periods"])
+    # measurement start: drive phase 2π n_tr, i.e. t_m = (2π n_tr - φ)/ω = whole steps
+    offset_steps = round(-drive.phase / (2.0 * math.pi) * steps_per)
+    transient_steps = n_tr * steps_per + offset_steps
+    if transient_steps < 0:
+        raise ValueError("the measurement cannot start before t = 0")
+    n_periods = len(periods)
+    start = _time.perf_counter()
+
+    if part == 0:
+        if start_positions is None:
+            raise ValueError("part 0 needs the prepared state")
+        n = start_positions.shape[0]
+        radii, masses = disk_arrays(n)
+        state = sim.new_state(
+            start_positions, radii, masses, velocities=start_velocities, spins=start_spins
+        )
+    else:
+        if previous_state is None or tracers is None:
+            raise ValueError(f"part {part} needs the previous part's state and tracers")
+        n = int(np.asarray(previous_state["vec"]).shape[2])
+        state = restore_state(sim, np.zeros((n, 2)), previous_state)
+        expected = (n_tr + periods[0]) * steps_per + offset_steps
+        have = round(state.time / dt)
+        if have != expected:
+            raise ValueError(
+                f"previous part ends at step {have}, part {part} starts at step {expected}"
+            )
+
+    total = (transient_steps if part == 0 else 0) + n_periods * steps_per
+    progress = Progress(log, total, label)
+
+    transient = None
+    if part == 0 and transient_steps > 0:
+        n_samples = -(-transient_steps // chunk)
+        tr = {
+            k: np.empty(n_samples + 1)
+            for k in ("time", "z_plate", "v_plate", "z_cm", "vz_cm", "bed_gap", "T_g",
+                      "max_vz")
+        }  # fmt: skip
+        tr["plate_contacts"] = np.empty(n_samples + 1, dtype=np.int64)
+        done = 0
+        for s in range(n_samples + 1):
+            t = state.time
+            zb, pos, vel, gap, cont, tg, zcm, vzcm = _sample(state, walls, t)
+            tr["time"][s] = t
+            tr["z_plate"][s] = zb
+            tr["v_plate"][s] = float(walls.velocity(t))
+            tr["z_cm"][s] = zcm
+            tr["vz_cm"][s] = vzcm
+            tr["bed_gap"][s] = gap
+            tr["T_g"][s] = tg
+            tr["max_vz"][s] = float(vel[:, 1].max())
+            tr["plate_contacts"][s] = cont
+            if s == n_samples:
+                break
+            steps = min(chunk, transient_steps - done)
+            sim.run(state, steps)
+            done += steps
+            text = f"transient period {done / steps_per:.1f} of {transient_steps / steps_per:.2f}"
+            progress.update(steps, text, state.time)
+        transient = tr
+
+    # the tracer row at the start of the measurement
+    if tracers is None:
+        tracers = ab.select_tracers(state.positions)
+    tracers = np.asarray(tracers, dtype=np.int64)
+    n_t = tracers.size
+
+    time_ = np.empty((n_periods, n_k))
+    z_plate = np.empty((n_periods, n_k))
+    z_tr = np.empty((n_periods, n_k, n_t))
+    gap_ = np.empty((n_periods, n_k))
+    cont_ = np.empty((n_periods, n_k), dtype=np.int64)
+    tg_ = np.empty((n_periods, n_k))
+    zcm_ = np.empty((n_periods, n_k))
+    vzcm_ = np.empty((n_periods, n_k))
+    frames = np.empty((n_periods + 1, n, 2), dtype=np.float32)
+    for j in range(n_periods):
+        for k in range(n_k):
+            t = state.time
+            zb, pos, vel, gap, cont, tg, zcm, vzcm = _sample(state, walls, t)
+            if k == 0:
+                frames[j] = pos
+            time_[j, k] = t
+            z_plate[j, k] = zb
+            z_tr[j, k] = pos[tracers, 1]
+            gap_[j, k] = gap
+            cont_[j, k] = cont
+            tg_[j, k] = tg
+            zcm_[j, k] = zcm
+            vzcm_[j, k] = vzcm
+            sim.run(state, chunk)
+            progress.update(
+                chunk, f"period {periods[j] + 1} of {periods[-1] + 1} (part {part})", state.time
+            )
+    frames[n_periods] = state.positions
+    wall = _time.perf_counter() - start
+    return PartResult(
+        periods=np.asarray(list(periods), dtype=np.int64),
+        time=time_,
+        z_plate=z_plate,
+        z_tracers=z_tr,
+        bed_gap=gap_,
+        plate_contacts=cont_,
+        granular_temperature=tg_,
+        z_cm=zcm_,
+        vz_cm=vzcm_,
+        cycle_positions=frames,
+        tracers=tracers,
+        final_state=state_arrays(state),
+        transient=transient,
+        dt=dt,
+        steps_per_period=steps_per,
+        steps=total,
+        wall_seconds=wall,
+        drive=drive,
+    )

@@ -1,0 +1,316 @@
+"""The box study's stages as file-to-file functions (the CLI calls these; rules call the CLI).
+
+    init      prepared state of (N_l, init, replica)        -> init/<state>/replica_r.nc
+    runs      one part of one point and replica              -> runs/<point>/replica_r.part_p.nc
+    ensemble  all runs of a point -> detection, T_g, p_s, ψ  -> ensemble/<point>.nc
+    fits      all points -> thresholds, segmented T_g*, E_b  -> fits/*.nc, fits/summary.csv
+    figures   Figures 1, 3, 4, 5                              -> figures/fig<k>_<name>.{png,pdf}
+
+Seeds: a replica's stream is ``replica_rng("box", seed_physics, replica)`` with
+``seed_physics = {physics, init, N_l, init kind}`` (:func:`seed_physics`); the run itself
+is deterministic given its initial state. Blow-ups are re-raised with the study, point,
+replica and seed.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time as _time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from ..errors import SimulationError
+from ..io import read_dataset, write_dataset
+from ..seeds import replica_rng, replica_seed
+from . import layout, model, prepare, protocol
+
+__all__ = [
+    "seed_physics",
+    "init_stage",
+    "runs_stage",
+    "read_point_runs",
+    "log_to_stderr",
+]
+
+
+def log_to_stderr(text: str) -> None:
+    print(f"[{_time.strftime('%H:%M:%S')}] {text}", file=sys.stderr, flush=True)
+
+
+def seed_physics(params: Mapping, n_l: int, kind: str) -> dict:
+    """The mapping that defines a replica's random stream (physics and preparation)."""
+    return {
+        "physics": dict(params["physics"]),
+        "init": dict(params["init"]),
+        "N_l": int(n_l),
+        "init_kind": kind,
+    }
+
+
+def _var(dims, data, units, long_name, **attrs):
+    return (dims, data, {"units": units, "long_name": long_name, **attrs})
+
+
+def n_disks(physics: Mapping, n_l: int) -> int:
+    """N = N_l Lx (rounded to the nearest integer)."""
+    return int(round(int(n_l) * float(physics["Lx"])))
+
+
+# --------------------------------------------------------------------------- init
+def init_stage(
+    params: Mapping,
+    n_l: int,
+    kind: str,
+    replica: int,
+    out: str | Path,
+    log: Callable[[str], None] | None = log_to_stderr,
+) -> Path:
+    """Prepare and write one initial state (``params`` = ``{physics, init}``)."""
+    physics, init_cfg = params["physics"], params["init"]
+    n = n_disks(physics, n_l)
+    sp = seed_physics(params, n_l, kind)
+    seed = replica_seed("box", sp, replica)
+    rng = replica_rng("box", sp, replica)
+    label = f"init {layout.state_name(n_l, kind)} replica {replica}"
+    if log:
+        log(f"{label}: N = {n}, seed = {seed}")
+    try:
+        prep = prepare.prepare(physics, init_cfg, n, kind, rng, log=log)
+    except SimulationError as exc:
+        raise exc.with_context(
+            study="box", point=layout.state_name(n_l, kind), replica=replica, seed=seed
+        ) from exc
+    from ..analysis import box as ab
+
+    lo = ab.local_order(prep.positions)
+    psi6 = prepare.bulk_psi6(prep.positions, float(physics["Lx"]))
+    if log:
+        log(
+            f"{label}: settled={prep.settled} after {prep.settle_time:.2f} t0 "
+            f"({prep.steps} steps, {prep.wall_seconds:.1f} s wall, "
+            f"{1e9 * prep.wall_seconds / max(prep.steps * n, 1):.0f} ns per particle-step), "
+            f"KE/N = {prep.kinetic_energy:.2e}, bulk |psi6| = {psi6:.4f}"
+        )
+    ds = xr.Dataset(
+        {
+            "positions": _var(("particle", "xy"), prep.positions, "sigma", "disk centre (x, z)"),
+            "velocities": _var(("particle", "xy"), prep.velocities, "sigma/t0", "disk velocity"),
+            "spins": _var(("particle",), prep.spins, "1/t0", "angular velocity (ccw > 0)"),
+            "psi6_abs": _var(("particle",), np.abs(lo["psi6"]), "1", "|psi6| bond order"),
+            "psi4_abs": _var(("particle",), np.abs(lo["psi4"]), "1", "|psi4| bond order"),
+            "order": _var(
+                ("particle",), lo["order"], "1", "local order: 0 disordered, 1 hexagonal, 2 square"
+            ),
+            "settle_history_ke": _var(
+                ("check",), prep.history["kinetic_energy"], "m*g*sigma", "kinetic energy per disk"
+            ),
+        },
+        coords={
+            "check": _var(("check",), prep.history["time"], "t0", "time of the settling check"),
+        },
+        attrs={
+            "study": "box",
+            "stage": "init",
+            "state": layout.state_name(n_l, kind),
+            "N_l": int(n_l),
+            "N": n,
+            "init": kind,
+            "replica": int(replica),
+            "seed": str(seed),
+            "settled": int(prep.settled),
+            "settle_time": prep.settle_time,
+            "kinetic_energy_per_disk": prep.kinetic_energy,
+            "bulk_psi6": psi6,
+            "steps": prep.steps,
+            "wall_seconds": prep.wall_seconds,
+            "crystal_rows": str(params["init"]["crystal_rows"]) if kind == "crystal" else "",
+        },
+    )
+    return write_dataset(ds, out, config_subset=params, seeds=[seed])
+
+
+# --------------------------------------------------------------------------- runs
+def runs_params(section: Mapping, part: int) -> dict:
+    """The exact config subset a run part depends on (what the rule passes as --params).
+
+    ``measured_periods`` is replaced by the number of periods of this part, so that raising
+    ``measured_periods`` by whole parts leaves the existing parts untouched.
+    """
+    proto = {k: v for k, v in section["protocol"].items() if k != "measured_periods"}
+    return {
+        "physics": dict(section["physics"]),
+        "init": dict(section["init"]),
+        "protocol": proto,
+        "part_periods": [
+            layout.part_periods(section, part).start,
+            layout.part_periods(section, part).stop,
+        ],
+    }
+
+
+def _engine_vars(arrays: Mapping[str, np.ndarray]) -> dict:
+    out = {}
+    for key, val in arrays.items():
+        a = np.asarray(val)
+        if a.dtype == bool:
+            a = a.astype(np.int8)
+        dims = tuple(f"engine_{key}_d{i}" for i in range(a.ndim))
+        out[f"engine_{key}"] = _var(dims, a, "1", f"engine state '{key}' (for continuation)")
+    return out
+
+
+def _engine_arrays(ds: xr.Dataset) -> dict:
+    names = [name for name in ds.data_vars if name.startswith("engine_")]
+    return {name[len("engine_") :]: ds[name].values for name in names}
+
+
+def runs_stage(
+    params: Mapping,
+    n_l: int,
+    gamma: float,
+    kind: str,
+    replica: int,
+    part: int,
+    init_file: str | Path,
+    out: str | Path,
+    previous: str | Path | None = None,
+    log: Callable[[str], None] | None = log_to_stderr,
+) -> Path:
+    """Run one part of a point and replica and write it (``params`` from :func:`runs_params`)."""
+    physics, proto = params["physics"], params["protocol"]
+    p0, p1 = (int(v) for v in params["part_periods"])
+    periods = range(p0, p1)
+    point = layout.point_name(n_l, gamma, kind)
+    init_ds = read_dataset(init_file)
+    seed = int(init_ds.attrs["seed"])
+    label = f"runs {point} replica {replica} part {part}"
+    kwargs = {}
+    if part == 0:
+        kwargs.update(
+            start_positions=init_ds["positions"].values,
+            start_velocities=init_ds["velocities"].values,
+            start_spins=init_ds["spins"].values,
+        )
+    else:
+        if previous is None:
+            raise ValueError(f"part {part} needs --previous (the run file of part {part - 1})")
+        prev = read_dataset(previous)
+        kwargs.update(previous_state=_engine_arrays(prev), tracers=prev["tracer_index"].values)
+    n = int(init_ds.sizes["particle"])
+    if log:
+        log(f"{label}: N = {n}, periods {p0}..{p1 - 1}, seed {seed}")
+    try:
+        res = protocol.run_part(
+            physics, proto, gamma, part, periods, log=log, label=label, **kwargs
+        )
+    except SimulationError as exc:
+        raise exc.with_context(study="box", point=point, replica=replica, seed=seed) from exc
+    if log:
+        log(
+            f"{label}: done, {res.steps} steps in {res.wall_seconds:.1f} s "
+            f"({res.ns_per_particle_step:.0f} ns per particle-step, dt = {res.dt:.6e} t0, "
+            f"{res.steps_per_period} steps per period)"
+        )
+    n_k = int(proto["phases_per_period"])
+    data = {
+        "time": _var(("period", "phase"), res.time, "t0", "time of the sample"),
+        "z_plate": _var(("period", "phase"), res.z_plate, "sigma", "plate height z_b(k)"),
+        "z_tracers": _var(
+            ("period", "phase", "tracer"), res.z_tracers, "sigma", "tracer heights z_j^i(k)"
+        ),
+        "bed_gap": _var(
+            ("period", "phase"),
+            res.bed_gap,
+            "sigma",
+            "gap under the bed: lowest disk bottom minus plate height",
+        ),  # fmt: skip
+        "plate_contacts": _var(
+            ("period", "phase"), res.plate_contacts, "1", "disks touching the plate"
+        ),
+        "T_g": _var(
+            ("period", "phase"),
+            res.granular_temperature,
+            "m*g*sigma",
+            "instantaneous granular temperature (Eq. 2 without the time average)",
+        ),  # fmt: skip
+        "z_cm": _var(("period", "phase"), res.z_cm, "sigma", "bed centre-of-mass height"),
+        "vz_cm": _var(("period", "phase"), res.vz_cm, "sigma/t0", "bed centre-of-mass velocity"),
+        "positions": _var(
+            ("frame", "particle", "xy"),
+            res.cycle_positions,
+            "sigma",
+            "disk centres at the start of periods (frame f = start of measured period p0 + f)",
+        ),  # fmt: skip
+        "tracer_index": _var(("tracer",), res.tracers, "1", "indices of the tracer disks"),
+    }
+    if res.transient is not None:
+        tr = res.transient
+        units = {
+            "time": ("t0", "time"),
+            "z_plate": ("sigma", "plate height"),
+            "v_plate": ("sigma/t0", "plate velocity"),
+            "z_cm": ("sigma", "bed centre-of-mass height"),
+            "vz_cm": ("sigma/t0", "bed centre-of-mass velocity"),
+            "bed_gap": ("sigma", "gap under the bed"),
+            "T_g": ("m*g*sigma", "instantaneous granular temperature"),
+            "max_vz": ("sigma/t0", "largest upward disk velocity"),
+            "plate_contacts": ("1", "disks touching the plate"),
+        }
+        for key, (u, ln) in units.items():
+            data[f"transient_{key}"] = _var(("transient_sample",), tr[key], u, f"transient: {ln}")
+    data.update(_engine_vars(res.final_state))
+    ds = xr.Dataset(
+        data,
+        coords={
+            "period": _var(("period",), res.periods, "1", "measured period index j"),
+            "phase": _var(("phase",), np.arange(n_k) / n_k, "1", "phase k/N_k of the cycle"),
+            "frame": _var(("frame",), np.arange(p0, p1 + 1), "1", "measured period at frame"),
+        },
+        attrs={
+            "study": "box",
+            "stage": "runs",
+            "point": point,
+            "N_l": int(n_l),
+            "N": n,
+            "Gamma": float(gamma),
+            "K_m": float(gamma) ** 2,
+            "init": kind,
+            "replica": int(replica),
+            "part": int(part),
+            "seed": str(seed),
+            "amplitude": res.drive.amplitude,
+            "omega": res.drive.omega,
+            "drive_phase": res.drive.phase,
+            "ramp_time": res.drive.ramp_time,
+            "z0": res.drive.z0,
+            "dt": res.dt,
+            "steps_per_period": res.steps_per_period,
+            "steps": res.steps,
+            "wall_seconds": res.wall_seconds,
+            "ns_per_particle_step": res.ns_per_particle_step,
+        },
+    )
+    return write_dataset(ds, out, config_subset=params, seeds=[seed])
+
+
+def read_point_runs(files: Sequence[str | Path]) -> dict[int, list[xr.Dataset]]:
+    """Run files of one point grouped by replica, each list in part order."""
+    by_rep: dict[int, list[xr.Dataset]] = {}
+    for f in files:
+        ds = read_dataset(f)
+        ds = ds.drop_vars([v for v in ds.data_vars if v.startswith("engine_")])
+        by_rep.setdefault(int(ds.attrs["replica"]), []).append(ds)
+    for rep, parts in by_rep.items():
+        parts.sort(key=lambda d: int(d.attrs["part"]))
+        expected = list(range(len(parts)))
+        got = [int(d.attrs["part"]) for d in parts]
+        if got != expected:
+            raise ValueError(f"replica {rep}: parts {got}, expected {expected}")
+    return by_rep
+
+
+_ = (math, model)  # used by later stages
