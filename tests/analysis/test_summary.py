@@ -76,3 +76,28 @@ def test_results_dataset_is_writable(tmp_path):
     assert back["sign_change_time"].attrs["n"] == 70
     np.testing.assert_array_equal(back["sign_change_time"].attrs["window"], [10.0, 20.0])
     assert np.isnan(float(back["lag_ci_low"]))
+
+
+def test_regression_and_threshold_rows_fit_the_summary():
+    from granpipe.analysis.regression import arrhenius_fit, segmented_fit
+    from granpipe.analysis.thresholds import threshold_crossing
+
+    x = np.log(np.geomspace(0.5, 20, 12))
+    seg = segmented_fit(x, 1.0 + x + 1.2 * np.maximum(x - np.log(3.3), 0) + 0.01 * np.sin(7 * x), 1)
+    rows = seg.summary_rows("box", "Tg_random", paper_breakpoints=[3.3])
+    assert [r["quantity"] for r in rows] == [
+        "Tg_random_breakpoint_1",
+        "Tg_random_slope_1",
+        "Tg_random_slope_2",
+    ]
+    assert rows[0]["value"] == pytest.approx(3.3, rel=0.05) and rows[0]["paper_value"] == 3.3
+    assert rows[0]["ci_low"] < rows[0]["value"] < rows[0]["ci_high"]
+    K = np.array([1.5, 2.0, 3.0, 4.0])
+    arr = arrhenius_fit(K, 0.5 * np.exp(-7 / K), p_s_sem=0.01 * 0.5 * np.exp(-7 / K))
+    th = threshold_crossing([1.0, 1.5, 2.0], [0.0, 0.5, 2.0], 1.0)
+    df = summary_frame(
+        rows + [arr.summary_row("box", "E_b_random", 7.0), th.summary_row("box", "G")]
+    )
+    assert df.loc[3, "value"] == pytest.approx(7.0) and df.loc[3, "n"] == 4
+    assert (df.loc[4, "ci_low"], df.loc[4, "ci_high"]) == (1.5, 2.0)  # the bracket
+    assert pd.isna(df.loc[4, "fit_error"])

@@ -120,6 +120,56 @@ class SegmentedFit:
         """Breakpoints and their CIs mapped back by exp (x = ln K_m → K_m)."""
         return np.exp(self.breakpoints), np.exp(self.breakpoint_ci)
 
+    def summary_rows(
+        self,
+        study: str,
+        prefix: str,
+        *,
+        log_x: bool = True,
+        unit: str = "1",
+        paper_breakpoints: list[float | None] | None = None,
+    ) -> list[dict]:
+        """``summary.csv`` rows: ``<prefix>_breakpoint_<j>`` and ``<prefix>_slope_<j>``.
+
+        With ``log_x`` (x = ln K_m) the breakpoints are reported in K_m units:
+        value exp(ψ), fit error exp(ψ)·SE(ψ) (delta method), CI exp of the CI.
+        Slopes are dimensionless log–log slopes. ``n`` is the number of points.
+        """
+        rows = []
+        papers = list(paper_breakpoints or []) + [None] * self.n_breakpoints
+        for j in range(self.n_breakpoints):
+            v, se, ci = self.breakpoints[j], self.breakpoint_se[j], self.breakpoint_ci[j]
+            if log_x:
+                v, se, ci = math.exp(v), math.exp(v) * se, np.exp(ci)
+            rows.append(
+                dict(
+                    study=study,
+                    quantity=f"{prefix}_breakpoint_{j + 1}",
+                    value=v,
+                    unit=unit,
+                    fit_error=se,
+                    ci_low=ci[0],
+                    ci_high=ci[1],
+                    n=self.n,
+                    paper_value=papers[j],
+                )
+            )
+        for j in range(self.n_breakpoints + 1):
+            rows.append(
+                dict(
+                    study=study,
+                    quantity=f"{prefix}_slope_{j + 1}",
+                    value=self.slopes[j],
+                    unit="1",
+                    fit_error=self.slope_se[j],
+                    ci_low=self.slope_ci[j, 0],
+                    ci_high=self.slope_ci[j, 1],
+                    n=self.n,
+                    paper_value=None,
+                )
+            )
+        return rows
+
 
 def _design(x, psi):
     """Columns 1, x, (x − ψ_k)₊; ψ may carry leading batch axes ending in (..., 1, k)."""
@@ -258,8 +308,10 @@ def _profile_intervals(x, sw, y, psi, se, k, min_points, level, rss_hat):
     width = np.where(np.isfinite(se) & (se > 0), 8.0 * se, 0.25 * (hi_adm - lo_adm))
     m = 2001 if k == 1 else 101
     for _ in range(6):
-        axes = [np.linspace(max(lo_adm, psi[j] - width[j]), min(hi_adm, psi[j] + width[j]), m)
-                for j in range(k)]  # fmt: skip
+        axes = [
+            np.linspace(max(lo_adm, psi[j] - width[j]), min(hi_adm, psi[j] + width[j]), m)
+            for j in range(k)
+        ]
         cand = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=-1)
         cand = cand[_admissible(xs, cand, min_points)]
         rss, coef = _profile_rss(x, sw, (y * sw)[None, :], cand)
@@ -530,6 +582,22 @@ class ArrheniusFit:
     zero_upper: np.ndarray = field(default_factory=lambda: np.zeros(0))
     zero_consistent: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     bound_cl: float = 0.95
+
+    def summary_row(
+        self, study: str, quantity: str, paper_value: float | None = None, unit: str = "1"
+    ) -> dict:
+        """A ``summary.csv`` row for E_b (n = points used in the fit)."""
+        return dict(
+            study=study,
+            quantity=quantity,
+            value=self.E_b,
+            unit=unit,
+            fit_error=self.E_b_se,
+            ci_low=self.E_b_ci[0],
+            ci_high=self.E_b_ci[1],
+            n=self.n_points,
+            paper_value=paper_value,
+        )
 
     def predict(self, K_m) -> np.ndarray:
         """Fitted p_s at K_m."""

@@ -54,6 +54,34 @@ class Threshold:
     status: str = "crossed"
     n_crossings: int = 1
 
+    def summary_row(
+        self,
+        study: str,
+        quantity: str,
+        paper_value: float | None = None,
+        unit: str = "1",
+        n: int | None = None,
+    ) -> dict:
+        """A ``summary.csv`` row; without a band, the CI columns hold the bracket.
+
+        For a threshold outside the grid, value is empty and the bracket names
+        the grid end (e.g. ci_low = last Γ for ``above_grid``).
+        """
+        lo, hi = self.ci_low, self.ci_high
+        if math.isnan(lo) and math.isnan(hi):
+            lo, hi = self.low, self.high
+        return dict(
+            study=study,
+            quantity=quantity,
+            value=self.value,
+            unit=unit,
+            fit_error=None,
+            ci_low=lo,
+            ci_high=hi,
+            n=n,
+            paper_value=paper_value,
+        )
+
 
 def _crossings(g, f):
     """Indices i with f_i < 0 <= f_{i+1} (upward crossings of zero)."""
