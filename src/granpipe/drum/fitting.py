@@ -1,0 +1,544 @@
+"""Drum analysis glue: batches → ensemble → fitted times (SPEC §1 "Analysis").
+
+The generic pieces live in :mod:`granpipe.analysis` (streaming reduction,
+moving average and low-pass, windowed fits, bootstrap); this module wires them
+to the drum's run files and the paper's definitions (Maghsoodi & Luijten 2016,
+Sec. III):
+
+* onset time t_on = vertex of a quadratic fit of the ensemble-mean V(t) on
+  1–4 s after t = 0 (the V minimum);
+* sign-change times = zeros of linear fits of the ensemble-mean λ(t) on 10–20 s
+  (onset window) and 7–9 s (decay window);
+* lags = onset sign change − t_on, and decay sign change − t_stop (the drum is
+  stopped at t_stop = 5 s of the decay window, which starts the decay by
+  definition);
+* λ̄ (Eq. 2, 0.5 s moving average) and the FFT low-pass (lowest 0.008 % of the
+  per-step frequencies: f ≤ 8e-5 · 1/(2Δt) = 1 Hz) and their zero crossings
+  as cross-checks.
+
+Every fitted time has a fit error (delta method) and a percentile bootstrap
+interval over replicas (``bootstrap_unit: replica``) or over batch means
+(``batch``, paper scale). The *automatic* windows keep the widths of the
+configured ones but are centred on the full-ensemble minimum of the smoothed
+V(t) (onset time) and on the first zero crossing of λ̄ (sign changes; these are
+re-centred in every bootstrap resample, so the interval includes the window
+choice), because our timing need not match the paper's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+from ..analysis.ensemble import EnsembleAccumulator
+from ..analysis.fits import (
+    FitResult,
+    bootstrap_batches,
+    bootstrap_replicas,
+    first_crossing,
+    lag,
+    vertex_time,
+    vertex_times,
+    zero_crossing_time,
+    zero_crossing_times,
+)
+from ..analysis.smoothing import (
+    lowpass_fft,
+    moving_average,
+    paper_lowpass_cutoff,
+    window_half_width,
+)
+
+__all__ = [
+    "WINDOWS",
+    "SERIES",
+    "PAPER_VALUES",
+    "valid_replicas",
+    "reduce_runs",
+    "Units",
+    "load_units",
+    "smoothed_series",
+    "drum_fits",
+]
+
+WINDOWS = ("onset", "decay")
+SERIES = ("lambda", "speed")
+PAPER_VALUES = {
+    "onset_time": 2.628,
+    "onset_sign_change_time": 14.5,
+    "onset_lag": 14.5 - 2.628,
+    "decay_sign_change_time": 8.13,
+    "decay_lag": 8.13 - 5.0,
+    "onset_lambda_bar_zero_time": 14.5,
+    "decay_lambda_bar_zero_time": 8.13,
+    "onset_lowpass_zero_time": 14.5,
+    "decay_lowpass_zero_time": 8.13,
+}
+"""The paper's numbers (Sec. III; seconds after the start of each recording)."""
+
+_SCALARS = ("settle_time", "continuous_time", "decay_start", "wall_time")
+
+
+def valid_replicas(ds: xr.Dataset, exclude_flagged: bool = True) -> np.ndarray:
+    """(replica,) bool: replicas that settled and reached a continuous avalanche."""
+    ok = np.ones(ds.sizes["replica"], dtype=bool)
+    if exclude_flagged:
+        for flag in ("settled", "continuous"):
+            if flag in ds:
+                ok &= ds[flag].values.astype(bool)
+    return ok
+
+
+def reduce_runs(paths: Sequence[str | os.PathLike], exclude_flagged: bool = True) -> xr.Dataset:
+    """Ensemble mean, standard error and count of λ(t) and V(t), onset and decay.
+
+    Streams over the run files (one open at a time, one
+    :class:`~granpipe.analysis.ensemble.EnsembleAccumulator` per series), so peak
+    memory is one batch plus the time axes, whatever the number of batches.
+
+    Returns
+    -------
+    xarray.Dataset with, for w in (onset, decay) and s in (lambda, speed),
+    ``{s}_{w}_mean``, ``{s}_{w}_sem`` (units of the series) and ``{s}_{w}_count``
+    on dims ``time_{w}`` [t0] with coordinates ``seconds_{w}`` [s]; per-replica
+    scalars summarised as ``{name}_mean`` / ``{name}_max`` (settle_time,
+    continuous_time, decay_start, wall_time) and counts ``n_replicas``,
+    ``n_excluded``, ``n_unsettled``, ``n_not_continuous`` (attrs).
+    """
+    paths = [os.fspath(p) for p in paths]
+    if not paths:
+        raise ValueError("no run files to reduce")
+    accs = {(s, w): EnsembleAccumulator() for s in SERIES for w in WINDOWS}
+    attrs: dict = {}
+    coords: dict = {}
+    longest = {w: -1 for w in WINDOWS}
+    sums = {k: 0.0 for k in _SCALARS}
+    maxs = {k: -np.inf for k in _SCALARS}
+    counts = {k: 0 for k in _SCALARS}
+    n_total = n_used = n_unsettled = n_notcont = 0
+    run_attrs: dict = {}
+    for path in paths:
+        with xr.open_dataset(path, engine="netcdf4") as ds:
+            ok = valid_replicas(ds, exclude_flagged)
+            n_total += int(ds.sizes["replica"])
+            n_used += int(ok.sum())
+            n_unsettled += int((ds["settled"].values == 0).sum())
+            n_notcont += int((ds["continuous"].values == 0).sum())
+            if not run_attrs:
+                run_attrs = {
+                    k: ds.attrs[k] for k in ("dt", "dt_s", "t0_s", "block_steps", "stop_time_s")
+                }
+            for w in WINDOWS:
+                tdim = f"time_{w}"
+                if ds.sizes[tdim] > longest[w]:
+                    longest[w] = ds.sizes[tdim]
+                    for c in (tdim, f"seconds_{w}"):
+                        coords[c] = ds[c].load().copy()
+                for s in SERIES:
+                    name = f"{s}_{w}"
+                    da = ds[name].load()
+                    attrs[name] = dict(da.attrs)
+                    if ok.any():
+                        accs[(s, w)].add(da.isel(replica=np.flatnonzero(ok)), time_dim=tdim)
+            for k in _SCALARS:
+                if k in ds and ok.any():
+                    v = ds[k].values[ok]
+                    v = v[np.isfinite(v)]
+                    sums[k] += float(v.sum())
+                    counts[k] += len(v)
+                    if len(v):
+                        maxs[k] = max(maxs[k], float(v.max()))
+    out = xr.Dataset(coords={k: v for k, v in coords.items()})
+    for (s, w), acc in accs.items():
+        name = f"{s}_{w}"
+        acc._grow(longest[w])
+        a = attrs[name]
+        lname = a.get("long_name", name)
+        tdim = f"time_{w}"
+        out[f"{name}_mean"] = (
+            tdim,
+            acc.mean,
+            {"units": a["units"], "long_name": f"ensemble mean of {lname}"},
+        )
+        out[f"{name}_sem"] = (
+            tdim,
+            acc.sem,
+            {"units": a["units"], "long_name": f"standard error of the ensemble mean of {lname}"},
+        )
+        out[f"{name}_count"] = (
+            tdim,
+            acc.count,
+            {"units": "1", "long_name": f"replicas contributing to {lname}"},
+        )
+    labels = {
+        "settle_time": "time to settle",
+        "continuous_time": "time from t = 0 to a continuous avalanche",
+        "decay_start": "start of the decay window after t = 0",
+        "wall_time": "wall-clock cost of one replica",
+    }
+    for k in _SCALARS:
+        mean = sums[k] / counts[k] if counts[k] else np.nan
+        out[f"{k}_mean"] = ((), mean, {"units": "s", "long_name": f"mean {labels[k]}"})
+        out[f"{k}_max"] = (
+            (),
+            maxs[k] if counts[k] else np.nan,
+            {"units": "s", "long_name": f"largest {labels[k]}"},
+        )
+    out.attrs.update(run_attrs)
+    out.attrs.update(
+        n_replicas=n_used,
+        n_replicas_run=n_total,
+        n_excluded=n_total - n_used,
+        n_unsettled=n_unsettled,
+        n_not_continuous=n_notcont,
+        n_batches=len(paths),
+        exclude_flagged=int(bool(exclude_flagged)),
+    )
+    return out
+
+
+@dataclass
+class Units:
+    """Bootstrap units of one window: per-replica series or per-batch means.
+
+    ``speed`` and ``lambda_`` are (n_units, T); ``counts`` is (n_units, T) for
+    batch means, ``None`` for replicas.
+    """
+
+    speed: np.ndarray
+    lambda_: np.ndarray
+    counts: np.ndarray | None
+    n_replicas: int
+
+
+def load_units(
+    paths: Sequence[str | os.PathLike],
+    unit: str = "replica",
+    exclude_flagged: bool = True,
+) -> dict[str, Units]:
+    """Per-replica records (``unit="replica"``) or batch means (``"batch"``) of each window.
+
+    Memory: (replicas or batches) × time × 2 series per window, read one file at a
+    time; for 70,000 replicas use ``"batch"`` (one row per file).
+    """
+    if unit not in ("replica", "batch"):
+        raise ValueError("unit must be 'replica' or 'batch'")
+    rows: dict = {(s, w): [] for s in SERIES for w in WINDOWS}
+    counts: dict = {w: [] for w in WINDOWS}
+    n_rep = 0
+    lengths = {w: 0 for w in WINDOWS}
+    for path in paths:
+        with xr.open_dataset(path, engine="netcdf4") as ds:
+            ok = np.flatnonzero(valid_replicas(ds, exclude_flagged))
+            n_rep += len(ok)
+            for w in WINDOWS:
+                lengths[w] = max(lengths[w], ds.sizes[f"time_{w}"])
+                for s in SERIES:
+                    x = ds[f"{s}_{w}"].transpose("replica", f"time_{w}").values[ok]
+                    if unit == "replica":
+                        rows[(s, w)].extend(list(x))
+                    elif len(ok):
+                        fin = np.isfinite(x)
+                        c = fin.sum(axis=0)
+                        with np.errstate(invalid="ignore"):
+                            m = np.where(fin, x, 0.0).sum(axis=0) / c
+                        rows[(s, w)].append(np.where(c > 0, m, np.nan))
+                        if s == SERIES[0]:
+                            counts[w].append(c)
+
+    def stack(seq, n, fill):
+        out = np.full((len(seq), n), fill, dtype=np.float64)
+        for i, r in enumerate(seq):
+            out[i, : len(r)] = r
+        return out
+
+    result = {}
+    for w in WINDOWS:
+        n = lengths[w]
+        result[w] = Units(
+            speed=stack(rows[("speed", w)], n, np.nan),
+            lambda_=stack(rows[("lambda", w)], n, np.nan),
+            counts=stack(counts[w], n, 0.0) if unit == "batch" else None,
+            n_replicas=n_rep,
+        )
+    return result
+
+
+def smoothed_series(ens: xr.Dataset, fits_cfg: Mapping) -> xr.Dataset:
+    """λ̄ (Eq. 2) and the FFT low-pass of the ensemble-mean λ, for both windows.
+
+    The moving-average width is ``fits.moving_average_s`` (0.5 s: q = 62 at 4 ms);
+    the low-pass keeps f ≤ ``lowpass_fraction`` · f_Nyquist of the per-step
+    sampling Δt (``paper_lowpass_cutoff``: 1 Hz for the paper), applied to the
+    block means (the fraction of *their* bins would keep only the mean).
+    """
+    block_s = float(ens.attrs["dt_s"]) * int(ens.attrs["block_steps"])
+    q = window_half_width(float(fits_cfg["moving_average_s"]), block_s)
+    cutoff = paper_lowpass_cutoff(float(fits_cfg["lowpass_fraction"]), float(ens.attrs["dt_s"]))
+    out = xr.Dataset(coords={c: ens[c] for c in ens.coords})
+    for w in WINDOWS:
+        y = ens[f"lambda_{w}_mean"].values
+        units = ens[f"lambda_{w}_mean"].attrs["units"]
+        out[f"lambda_bar_{w}"] = (
+            f"time_{w}",
+            moving_average(y, q),
+            {
+                "units": units,
+                "long_name": f"moving average of the ensemble-mean λ, width "
+                f"{(2 * q + 1) * block_s:g} s (Eq. 2), {w} window",
+            },
+        )
+        good = np.isfinite(y)
+        lp = np.full_like(y, np.nan)
+        if good.sum() > 2:
+            # The low-pass needs a finite record: filter the finite stretch.
+            i0, i1 = np.flatnonzero(good)[[0, -1]]
+            seg = y[i0 : i1 + 1]
+            if np.all(np.isfinite(seg)):
+                lp[i0 : i1 + 1] = lowpass_fft(seg, cutoff=cutoff, dt=block_s)
+        out[f"lambda_lowpass_{w}"] = (
+            f"time_{w}",
+            lp,
+            {
+                "units": units,
+                "long_name": f"FFT low-pass (f <= {cutoff:g} Hz) of the ensemble-mean λ, "
+                f"{w} window",
+            },
+        )
+    out.attrs.update(moving_average_q=q, lowpass_cutoff_hz=cutoff, block_s=block_s)
+    return out
+
+
+def _argmin_smoothed(t, y, q, search):
+    ys = moving_average(y, q)
+    inside = (t >= search[0]) & (t <= search[1]) & np.isfinite(ys)
+    if not inside.any():
+        return np.nan
+    return float(t[inside][np.argmin(ys[inside])])
+
+
+def _fit_curve(t, res: FitResult, deg: int) -> np.ndarray:
+    """The fitted polynomial on its window (NaN elsewhere), for the figures."""
+    y = np.full_like(t, np.nan)
+    if res.coefficients is None or res.window is None or not np.isfinite(res.value):
+        return y
+    lo, hi = res.window
+    inside = (t >= lo) & (t <= hi)
+    u = t[inside] - res.t_ref
+    c = np.asarray(res.coefficients)
+    y[inside] = sum(c[k] * u**k for k in range(deg + 1))
+    return y
+
+
+def _boot(units: Units, statistic, cfg):
+    """Joint bootstrap of (V, λ) over replicas or batch means (analysis.fits)."""
+    kw = dict(
+        n_resamples=int(cfg["bootstrap_resamples"]),
+        level=float(cfg["confidence"]),
+        seed=int(cfg["seed"]),
+    )
+    if units.counts is None:
+        return bootstrap_replicas([units.speed, units.lambda_], statistic, **kw)
+    return bootstrap_batches([units.speed, units.lambda_], units.counts, statistic, **kw)
+
+
+def _window_analysis(
+    t, ens, w, units, cfg, q, *, vertex_window, zero_window, half_width, search, direction,
+    stop, suffix,
+):  # fmt: skip
+    """Change of state, sign change and lag of one window, with a joint bootstrap.
+
+    Central values: fits of the ensemble mean weighted by its standard error. The
+    bootstrap refits every resample with the same weights (fixed design); a
+    ``zero_window`` of ``"auto"`` is re-centred in every resample on the first
+    crossing of its own λ̄ within ``search``.
+    """
+    mV, sV = ens[f"speed_{w}_mean"].values, ens[f"speed_{w}_sem"].values
+    mL, sL = ens[f"lambda_{w}_mean"].values, ens[f"lambda_{w}_sem"].values
+    n = int(ens.attrs["n_replicas"])
+    out: dict[str, FitResult] = {}
+    if vertex_window is not None:
+        out["change"] = vertex_time(t, mV, vertex_window, sV, quantity=f"{w}_time{suffix}", n=n)
+        change: FitResult | float = out["change"]
+        v_ref = out["change"].t_ref
+    else:
+        change = float(stop)
+    if zero_window == "auto":
+        centre = float(first_crossing(t, moving_average(mL, q), search, direction))
+        zwin = (centre - half_width, centre + half_width)
+    else:
+        zwin = tuple(zero_window)
+    out["sign"] = zero_crossing_time(t, mL, zwin, sL, quantity=f"{w}_sign_change_time{suffix}", n=n)
+    if zero_window == "auto":
+        out["sign"] = dataclasses.replace(out["sign"], method=out["sign"].method + " (auto window)")
+    out["lag"] = lag(out["sign"], change, quantity=f"{w}_lag{suffix}")
+    z_ref = out["sign"].t_ref
+
+    def statistic(mv, ml):
+        if zero_window == "auto":
+            c = first_crossing(t, moving_average(ml, q), search, direction)
+            win = (c - half_width, c + half_width)
+        else:
+            win = zwin
+        z, _, _ = zero_crossing_times(t, ml, win, sL, t_ref=z_ref)
+        if vertex_window is None:
+            v = np.full_like(z, float(stop))
+        else:
+            v, _, _ = vertex_times(t, mv, vertex_window, sV, t_ref=v_ref)
+        return np.stack([v, z, z - v], axis=-1)
+
+    if np.isfinite(out["sign"].value) and int(cfg["bootstrap_resamples"]) > 0:
+        boot = _boot(units, statistic, cfg)
+        if "change" in out:
+            out["change"] = out["change"].with_ci(boot, 0)
+        out["sign"] = out["sign"].with_ci(boot, 1)
+        out["lag"] = out["lag"].with_ci(boot, 2)
+    return out
+
+
+def drum_fits(
+    ens: xr.Dataset,
+    units: Mapping[str, Units],
+    fits_cfg: Mapping,
+) -> tuple[list[FitResult], xr.Dataset]:
+    """All fitted times of the drum study, with fit errors and bootstrap intervals.
+
+    Parameters
+    ----------
+    ens : Dataset from :func:`reduce_runs` (its ``seconds_*`` coordinates are the
+        fit abscissae, in seconds after the start of each recording).
+    units : from :func:`load_units` (the same replicas as ``ens``).
+    fits_cfg : the ``drum.fits`` section (filled).
+
+    Returns
+    -------
+    results : list of FitResult (unit "s"), named ``onset_time``,
+        ``onset_sign_change_time``, ``onset_lag``, ``decay_sign_change_time``,
+        ``decay_lag``, the same with suffix ``_auto`` (automatic windows),
+        and the zero crossings of λ̄ and of the low-pass
+        (``{w}_lambda_bar_zero_time``, ``{w}_lowpass_zero_time``).
+    curves : Dataset of λ̄, low-pass and the fitted segments (NaN off-window),
+        on the ensemble's time axes, for the figures.
+
+    Notes
+    -----
+    Central values and fit errors come from the ensemble mean weighted by its
+    standard error (so they do not depend on the bootstrap unit); intervals from
+    the joint percentile bootstrap of V and λ (the lag's interval from the
+    per-resample difference, keeping the correlation of the two fits).
+    """
+    cfg = dict(fits_cfg)
+    curves = smoothed_series(ens, cfg)
+    q = int(curves.attrs["moving_average_q"])
+    stop = float(ens.attrs["stop_time_s"])
+    t_on = ens["seconds_onset"].values
+    t_de = ens["seconds_decay"].values
+    results: list[FitResult] = []
+    modes = [("", False)] + ([("_auto", True)] if cfg["auto_windows"] else [])
+    for suffix, auto in modes:
+        vwin = tuple(cfg["onset_vertex_window_s"])
+        zon = tuple(cfg["onset_zero_window_s"])
+        zde = tuple(cfg["decay_zero_window_s"])
+        vmin = _argmin_smoothed(
+            t_on, ens["speed_onset_mean"].values, q, tuple(cfg["vertex_search_s"])
+        )
+        if auto:
+            hw = 0.5 * (vwin[1] - vwin[0])
+            vwin = (max(float(t_on[0]), vmin - hw), vmin + hw)
+        on = _window_analysis(
+            t_on, ens, "onset", units["onset"], cfg, q,
+            vertex_window=vwin,
+            zero_window="auto" if auto else zon,
+            half_width=0.5 * (zon[1] - zon[0]),
+            search=(vmin if np.isfinite(vmin) else float(t_on[0]), float(t_on[-1])),
+            direction=+1, stop=None, suffix=suffix,
+        )  # fmt: skip
+        de = _window_analysis(
+            t_de, ens, "decay", units["decay"], cfg, q,
+            vertex_window=None,
+            zero_window="auto" if auto else zde,
+            half_width=0.5 * (zde[1] - zde[0]),
+            search=(stop, float(t_de[-1])),
+            direction=-1, stop=stop, suffix=suffix,
+        )  # fmt: skip
+        results += [on["change"], on["sign"], on["lag"], de["sign"], de["lag"]]
+        label = "auto" if auto else "config"
+        for name, tt, res, deg, ref in (
+            (f"fit_speed_onset_{label}", t_on, on["change"], 2, "speed_onset_mean"),
+            (f"fit_lambda_onset_{label}", t_on, on["sign"], 1, "lambda_onset_mean"),
+            (f"fit_lambda_decay_{label}", t_de, de["sign"], 1, "lambda_decay_mean"),
+        ):
+            kind = "quadratic fit of V" if deg == 2 else "linear fit of λ"
+            curves[name] = (
+                ens[ref].dims[0],
+                _fit_curve(tt, res, deg),
+                {"units": ens[ref].attrs["units"], "long_name": f"{kind}, {label} window"},
+            )
+    results.extend(_crossings(ens, curves, units, q, stop, cfg))
+    return results, curves
+
+
+def _crossings(ens, curves, units, q, stop, cfg) -> list[FitResult]:
+    """Zero crossings of λ̄ (with a bootstrap interval) and of the low-pass (value only)."""
+    out = []
+    level = float(cfg["confidence"])
+    for w, direction in (("onset", +1), ("decay", -1)):
+        t = ens[f"seconds_{w}"].values
+        if w == "onset":
+            vmin = _argmin_smoothed(
+                t, ens["speed_onset_mean"].values, q, tuple(cfg["vertex_search_s"])
+            )
+            search = (vmin if np.isfinite(vmin) else 0.0, float(t[-1]))
+        else:
+            search = (stop, float(t[-1]))
+        u = units[w]
+        n = u.n_replicas
+
+        def stat(mean_lambda, t=t, search=search, direction=direction):
+            return first_crossing(t, moving_average(mean_lambda, q), search, direction)
+
+        value = float(first_crossing(t, curves[f"lambda_bar_{w}"].values, search, direction))
+        if u.counts is None:
+            boot = bootstrap_replicas(
+                u.lambda_,
+                stat,
+                n_resamples=int(cfg["bootstrap_resamples"]),
+                level=level,
+                seed=int(cfg["seed"]),
+            )
+        else:
+            boot = bootstrap_batches(
+                u.lambda_,
+                u.counts,
+                stat,
+                n_resamples=int(cfg["bootstrap_resamples"]),
+                level=level,
+                seed=int(cfg["seed"]),
+            )
+        out.append(
+            FitResult(
+                f"{w}_lambda_bar_zero_time",
+                value,
+                np.nan,
+                "s",
+                n=n,
+                method="first zero crossing of the moving average (Eq. 2)",
+            ).with_ci(boot)
+        )
+        lp = curves[f"lambda_lowpass_{w}"].values
+        out.append(
+            FitResult(
+                f"{w}_lowpass_zero_time",
+                float(first_crossing(t, lp, search, direction)),
+                np.nan,
+                "s",
+                n=n,
+                method="first zero crossing of the FFT low-pass",
+            )
+        )
+    return out

@@ -1,0 +1,609 @@
+"""One replica of the drum study, step by step (SPEC §1 "Protocol"; paper Sec. II.2-II.3).
+
+1. **Placement** — the N mobile disks at random without overlap inside the drum
+   (:func:`granpipe.drum.placement.random_placement`), at rest.
+2. **Settling** (stage ``init``) — the disks fall under gravity with the drum at
+   rest, in chunks of ``protocol.chunk_s``, recording block means of V; after
+   every block, disk speeds above ``settle.max_speed`` are scaled down to it (a
+   free fall from the top of the drum would hit the pile at ~10 sqrt(g d_s), an
+   overlap of ~0.4 d_s at this k_n, which the engine rejects as a blow-up). The pile
+   is *settled* at the end of the first chunk, at least ``settle.min_time_s`` after
+   the start, such that every block mean of the rms speed per disk V/sqrt(N) in
+   the last ``settle.hold_s`` is below ``settle.speed_threshold``. A replica not
+   settled after ``settle.max_time_s`` is flagged (``settled = 0``) and, by
+   default, left out of the ensemble.
+3. **Tangent vector** — about ``protocol.tangent_fraction`` (10 %) of the 4N
+   components δx, δy, δv_x, δv_y of the mobile disks, each chosen independently
+   with that probability, get values uniform in [−1, 1] (Sec. II.3). It is set
+   when the rotation starts and evolves with the trajectory from then on (the 1°
+   of rotation before t = 0 doubles as its alignment time).
+4. **Rotation and onset window** — the drum turns clockwise at Ω; after
+   ``protocol.pre_rotation_deg`` (1° = 2.5 s) the clock reads t = 0 and the onset
+   window of ``protocol.onset_window_s`` is recorded: block means of λ(t) and V(t)
+   over ``protocol.block_s`` (4 ms = 100 steps).
+5. **Continuous avalanche** — the drum keeps turning. The avalanche *flows* at
+   the end of a chunk if the mean of V over the preceding
+   ``protocol.continuous_hold_s`` exceeds ``1 + protocol.continuous_excess`` times
+   the speed of rigid rotation with the drum, Ω sqrt(Σ r_i²) (at the paper's
+   slow Ω, V of a pile turning with the drum is ~0.17 sqrt(g d_s); the flowing
+   layer adds to it). The first such time after t = 0 is recorded
+   (``continuous_time``); the decay window starts at the first chunk boundary at
+   or after the end of the onset window at which the avalanche flows. If it does
+   not flow by ``protocol.max_rotation_s`` after t = 0, the replica is flagged
+   (``continuous = 0``), its decay window is recorded anyway from there, and by
+   default it is left out of the ensemble.
+6. **Decay window** — ``protocol.decay_window_s`` recorded from a fresh t = 0:
+   the drum still turns for ``protocol.decay_rotating_s`` (5 s), then stops
+   abruptly (wall velocities zero from that step on).
+
+A replica's random stream is ``replica_rng("drum", physics, replica)`` with
+``physics`` = the ``physics``, ``settle`` and ``protocol`` sub-sections
+(:func:`granpipe.drum.settings.seed_physics`); its first spawned child places the
+disks, the second draws the tangent vector. Every replica runs on its own engine
+state, so its output depends on nothing else: not the batch, its size, the thread
+count or the order. Replicas of a batch run side by side in threads (the engine's
+kernels release the GIL).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+from ..engine import DrumLaw, Simulation, WallDisks
+from ..errors import SimulationError
+from ..seeds import batch_replicas, replica_rng, replica_seed
+from . import geometry
+from .layout import point_name
+from .placement import random_placement
+from .records import ReplicaRecord, Snapshot, batch_dataset
+from .settings import Steps, filled, seed_physics, steps
+
+__all__ = [
+    "DrumModel",
+    "Progress",
+    "Settled",
+    "initial_tangent",
+    "settle",
+    "run_protocol",
+    "settle_batch",
+    "run_batch",
+    "run_replica",
+    "replica_streams",
+]
+
+Log = Callable[[str], None]
+
+
+def _quiet(msg: str) -> None:
+    pass
+
+
+# --------------------------------------------------------------------------- the model
+@dataclass
+class DrumModel:
+    """Disks, wall and engine of a section (reduced units throughout).
+
+    Attributes
+    ----------
+    physics : the ``drum.physics`` section
+    geom : DrumGeometry
+    diameters : (N,) float64 [d_s]; masses : (N,) float64 [m_s]
+    n_mobile : int
+    walls0 : (n, 2) float64 [d_s], wall-disk centres at rotation angle 0
+    """
+
+    physics: dict
+    geom: geometry.DrumGeometry
+    diameters: np.ndarray
+    masses: np.ndarray
+    n_mobile: int
+    walls0: np.ndarray
+
+    @classmethod
+    def from_section(cls, section: Mapping) -> DrumModel:
+        ph = dict(filled(section)["physics"])
+        geom = geometry.geometry(ph)
+        d = geometry.diameters(ph)
+        return cls(ph, geom, d, geometry.masses(ph), len(d), geometry.wall_positions(geom))
+
+    def simulation(self, omega_clockwise: float) -> Simulation:
+        """The engine with the drum turning clockwise at ``omega_clockwise`` [rad/t0]."""
+        ph = self.physics
+        law = DrumLaw(ph["k_n"], ph["gamma_n"], ph["gamma_t"], ph["mu"])
+        # The engine counts angles counter-clockwise: clockwise rotation is omega < 0.
+        walls = WallDisks(centre=(0.0, 0.0), omega=-float(omega_clockwise))
+        return Simulation(
+            law, float(ph["dt"]), gravity=(0.0, -float(ph["g"])), wall_disks=walls,
+            skin=float(ph["skin"]), parallel=False,
+        )  # fmt: skip
+
+    def new_state(self, sim: Simulation, positions, velocities, t: float = 0.0):
+        """An engine state: mobile disks (N, 2) then the wall disks at angle 0."""
+        n_w = self.geom.n_wall
+        pos = np.concatenate([np.asarray(positions, np.float64), self.walls0])
+        vel = np.concatenate([np.asarray(velocities, np.float64), np.zeros((n_w, 2))])
+        radii = np.concatenate([self.diameters, np.full(n_w, self.geom.d_wall)]) / 2.0
+        masses = np.concatenate([self.masses, np.ones(n_w)])
+        is_wall = np.concatenate([np.zeros(self.n_mobile, bool), np.ones(n_w, bool)])
+        return sim.new_state(pos, radii, masses, velocities=vel, is_wall=is_wall, time=t)
+
+    def rigid_speed(self, state, omega: float) -> float:
+        """Ω sqrt(Σ_i |r_i|²): V of the mobile disks turning rigidly with the drum [d_s/t0]."""
+        p = state.positions[: self.n_mobile]
+        return float(omega * math.sqrt(float(np.sum(p * p))))
+
+    def rms_speed(self, global_speed):
+        """V/sqrt(N): rms speed per mobile disk [d_s/t0]."""
+        return np.asarray(global_speed) / math.sqrt(self.n_mobile)
+
+
+def replica_streams(section: Mapping, replica: int, physics: Mapping | None = None):
+    """(placement rng, tangent rng, seed) of a replica (children of its own stream)."""
+    physics = seed_physics(section) if physics is None else physics
+    rng = replica_rng("drum", physics, replica)
+    place, tangent = rng.spawn(2)
+    return place, tangent, replica_seed("drum", physics, replica)
+
+
+def initial_tangent(n_mobile: int, rng: np.random.Generator, fraction: float):
+    """(dr, dv), each (N, 2): ~``fraction`` of the 4N components uniform in [−1, 1], others 0."""
+    mask = rng.random((n_mobile, 4)) < fraction
+    values = rng.uniform(-1.0, 1.0, (n_mobile, 4))
+    du = np.where(mask, values, 0.0)
+    if not du.any():  # vanishingly unlikely for N = 736; keep the vector non-zero
+        du[rng.integers(n_mobile), rng.integers(4)] = rng.uniform(-1.0, 1.0)
+    return du[:, :2], du[:, 2:]
+
+
+# --------------------------------------------------------------------------- progress
+class Progress:
+    """Progress lines for long jobs: replica k of n, simulated time, elapsed, remaining.
+
+    ``update`` is cheap and thread-safe; it prints at most every ``interval`` s of wall
+    time. ``expected_steps`` per replica sets the estimate of the time remaining.
+    """
+
+    def __init__(self, n_replicas: int, expected_steps: int, log: Log, interval: float = 30.0,
+                 what: str = "replica"):  # fmt: skip
+        self.n = int(n_replicas)
+        self.expected = max(1, int(expected_steps))
+        self.log = log
+        self.interval = float(interval)
+        self.what = what
+        self.t_start = time.perf_counter()
+        self.last = self.t_start
+        self.done_steps: dict[int, int] = {}
+        self.finished = 0
+        self.lock = threading.Lock()
+
+    def update(self, k: int, steps_done: int, sim_time_s: float, phase: str, force=False):
+        now = time.perf_counter()
+        with self.lock:
+            self.done_steps[k] = steps_done
+            if not force and now - self.last < self.interval:
+                return
+            self.last = now
+            frac = sum(min(s, self.expected) for s in self.done_steps.values()) / (
+                self.n * self.expected
+            )
+            elapsed = now - self.t_start
+            remaining = elapsed * (1.0 - frac) / frac if frac > 0 else float("nan")
+        self.log(
+            f"{self.what} {k + 1} of {self.n}: {phase}, t = {sim_time_s:.2f} s; "
+            f"elapsed {elapsed:.0f} s, about {remaining:.0f} s remaining"
+        )
+
+    def finish(self, k: int, msg: str):
+        with self.lock:
+            self.done_steps[k] = self.expected
+            self.finished += 1
+        self.log(f"{self.what} {k + 1} of {self.n} done: {msg}")
+
+
+# --------------------------------------------------------------------------- settling
+@dataclass
+class Settled:
+    """A settled pile: (N, 2) positions [d_s] and velocities [d_s/t0] of the mobile disks."""
+
+    positions: np.ndarray
+    velocities: np.ndarray
+    settled: bool
+    settle_time: float
+    n_steps: int
+    wall_time: float
+
+
+def settle(
+    model: DrumModel,
+    st: Steps,
+    settle_cfg: Mapping,
+    rng: np.random.Generator,
+    *,
+    on_chunk: Callable[[int, float], None] | None = None,
+) -> Settled:
+    """Place the disks at random and let them fall and settle with the drum at rest."""
+    t_wall = time.perf_counter()
+    pos = random_placement(model.diameters, model.geom.inner_radius, rng, gap=settle_cfg["gap"])
+    sim = model.simulation(0.0)
+    state = model.new_state(sim, pos, np.zeros_like(pos))
+    threshold = float(settle_cfg["speed_threshold"])
+    vmax = float(settle_cfg["max_speed"])
+    n_mob = model.n_mobile
+    history: list[np.ndarray] = []
+    done = 0
+    settled = False
+    while done < st.settle_max:
+        n = min(st.chunk, st.settle_max - done)
+        for _ in range(n // st.block):
+            rec = sim.run(state, st.block, stride=st.block)
+            history.append(model.rms_speed(rec.global_speed))
+            # Free fall from the top of the drum would hit the pile at ~10 sqrt(g d_s),
+            # an overlap of ~0.4 d_s with k_n = 566: cap the speeds instead.
+            vel = state.velocities[:n_mob]
+            speed = np.hypot(vel[:, 0], vel[:, 1])
+            fast = speed > vmax
+            if fast.any():
+                vel[fast] *= (vmax / speed[fast])[:, None]
+                sim.refresh(state)
+        done += n
+        if on_chunk is not None:
+            on_chunk(done, done * st.dt_s)
+        if done >= st.settle_min:
+            tail = np.concatenate(history[-st.settle_hold :])
+            if len(tail) >= st.settle_hold and np.all(tail < threshold):
+                settled = True
+                break
+    return Settled(
+        positions=state.positions[: model.n_mobile].copy(),
+        velocities=state.velocities[: model.n_mobile].copy(),
+        settled=settled,
+        settle_time=done * st.dt_s,
+        n_steps=done,
+        wall_time=time.perf_counter() - t_wall,
+    )
+
+
+# --------------------------------------------------------------------------- protocol
+def _snapshot(model, state, label, description):
+    return Snapshot(
+        positions=state.positions[: model.n_mobile].copy(),
+        velocities=state.velocities[: model.n_mobile].copy(),
+        wall_positions=state.positions[model.n_mobile :].copy(),
+        label=label,
+        description=description,
+    )
+
+
+def run_protocol(
+    model: DrumModel,
+    st: Steps,
+    protocol: Mapping,
+    start: Settled,
+    tangent_rng: np.random.Generator,
+    *,
+    replica: int = 0,
+    seed: int = 0,
+    snapshots: bool = False,
+    on_chunk: Callable[[int, float, str], None] | None = None,
+) -> ReplicaRecord:
+    """Steps 3-6 of the module docstring from a settled pile; one onset-decay pair.
+
+    Returns a :class:`~granpipe.drum.records.ReplicaRecord` (λ in 1/t0, V in d_s/t0,
+    times in s); ``settled``/``settle_time`` are copied from ``start``.
+    """
+    t_wall = time.perf_counter()
+    omega = float(model.physics["omega"])
+    sim = model.simulation(omega)
+    state = model.new_state(sim, start.positions, start.velocities, t=-st.pre_rotation * st.dt)
+    dr, dv = initial_tangent(model.n_mobile, tangent_rng, float(protocol["tangent_fraction"]))
+    n_w = model.geom.n_wall
+    sim.set_tangent(state, np.concatenate([dr, np.zeros((n_w, 2))]),
+                    np.concatenate([dv, np.zeros((n_w, 2))]))  # fmt: skip
+    total = 0
+
+    def advance(sim_, n_steps, stride, phase, t_origin_s):
+        nonlocal total
+        rec = sim_.run(state, n_steps, stride=stride, tangent=True)
+        total += n_steps
+        if on_chunk is not None:
+            on_chunk(total, t_origin_s, phase)
+        return rec
+
+    # 4. one degree of rotation, then t = 0
+    done = 0
+    while done < st.pre_rotation:
+        n = min(st.chunk, st.pre_rotation - done)
+        advance(sim, n, 0, "rotation before t = 0", (done + n - st.pre_rotation) * st.dt_s)
+        done += n
+    snaps = [_snapshot(model, state, "t=0", "before the onset (onset window, t = 0)")] \
+        if snapshots else []  # fmt: skip
+
+    # 4-5. onset window, watching for a continuous avalanche
+    lam_on, v_on = [], []
+    speeds: list[np.ndarray] = []  # V of every block since t = 0
+    hold = st.continuous_hold
+    excess = float(protocol["continuous_excess"])
+    t_cont = None  # first chunk end at which the avalanche flowed (criterion met)
+
+    def flowing() -> bool:
+        v = np.concatenate(speeds)
+        if len(v) < hold:
+            return False
+        return bool(np.mean(v[-hold:]) > (1.0 + excess) * model.rigid_speed(state, omega))
+
+    done = 0
+    while done < st.onset:
+        n = min(st.chunk, st.onset - done)
+        rec = advance(sim, n, st.block, "onset window", (done + n) * st.dt_s)
+        lam_on.append(rec.local_lyapunov)
+        v_on.append(rec.global_speed)
+        speeds.append(rec.global_speed)
+        done += n
+        if t_cont is None and flowing():
+            t_cont = done * st.dt_s
+    # 5. keep turning (recording V only to watch the criterion) until it flows at a
+    # chunk boundary after the onset window
+    is_flowing = flowing()
+    while not is_flowing and done < st.max_rotation:
+        rec = advance(sim, st.chunk, st.block, "waiting for a continuous avalanche",
+                      (done + st.chunk) * st.dt_s)  # fmt: skip
+        speeds.append(rec.global_speed)
+        done += st.chunk
+        is_flowing = flowing()
+        if t_cont is None and is_flowing:
+            t_cont = done * st.dt_s
+    continuous = bool(is_flowing)
+    continuous_time = t_cont if t_cont is not None else math.nan
+    decay_start = done * st.dt_s
+    if snapshots:
+        snaps.append(
+            _snapshot(model, state, "avalanche",
+                      f"continuous avalanche (t = {decay_start:.1f} s, start of the decay window)")
+        )  # fmt: skip
+
+    # 6. decay window: still turning for decay_rotating steps, then stopped abruptly.
+    # The wall angle is part of the engine state, so switching to a still drum between
+    # two chunks stops it exactly at that step, without a jump.
+    sim_stopped = model.simulation(0.0)
+    lam_de, v_de = [], []
+    done = 0
+    while done < st.decay:
+        turning = done < st.decay_rotating
+        end = st.decay_rotating if turning else st.decay
+        n = min(st.chunk, end - done)
+        rec = advance(sim if turning else sim_stopped, n, st.block, "decay window",
+                      (done + n) * st.dt_s)  # fmt: skip
+        lam_de.append(rec.local_lyapunov)
+        v_de.append(rec.global_speed)
+        done += n
+    return ReplicaRecord(
+        replica=int(replica),
+        seed=int(seed),
+        lambda_onset=np.concatenate(lam_on),
+        speed_onset=np.concatenate(v_on),
+        lambda_decay=np.concatenate(lam_de),
+        speed_decay=np.concatenate(v_de),
+        settled=bool(start.settled),
+        settle_time=float(start.settle_time),
+        continuous=continuous,
+        continuous_time=continuous_time,
+        decay_start=decay_start,
+        wall_time=time.perf_counter() - t_wall,
+        n_steps=int(total),
+        snapshots=snaps,
+    )
+
+
+# --------------------------------------------------------------------------- batches
+def _map(fn, items, threads: int):
+    """``[fn(x) for x in items]``, in ``threads`` threads (order kept; first error raised)."""
+    items = list(items)
+    if threads <= 1 or len(items) <= 1:
+        return [fn(x) for x in items]
+    with ThreadPoolExecutor(max_workers=min(threads, len(items))) as pool:
+        return list(pool.map(fn, items))
+
+
+def _with_context(exc: SimulationError, section, replica, seed, stage):
+    return exc.with_context(
+        study="drum", stage=stage, point=point_name(section), replica=int(replica), seed=int(seed)
+    )
+
+
+def _init_dataset(model: DrumModel, replicas, seeds, piles: list[Settled]) -> xr.Dataset:
+    r = ("replica",)
+    return xr.Dataset(
+        {
+            "position": (
+                ("replica", "particle", "xy"),
+                np.stack([p.positions for p in piles]),
+                {"units": "d_s", "long_name": "settled mobile-disk centre"},
+            ),
+            "velocity": (
+                ("replica", "particle", "xy"),
+                np.stack([p.velocities for p in piles]),
+                {"units": "d_s/t0", "long_name": "mobile-disk velocity at the end of settling"},
+            ),
+            "seed": (
+                r,
+                np.asarray(seeds, np.int64),
+                {"units": "1", "long_name": "seed of the replica's random stream"},
+            ),
+            "settled": (
+                r,
+                np.array([p.settled for p in piles], np.int8),
+                {"units": "1", "long_name": "1 if the settling criterion was met"},
+            ),
+            "settle_time": (
+                r,
+                np.array([p.settle_time for p in piles]),
+                {"units": "s", "long_name": "duration of the fall and settling"},
+            ),
+            "n_steps": (
+                r,
+                np.array([p.n_steps for p in piles], np.int64),
+                {"units": "1", "long_name": "settling steps"},
+            ),
+            "wall_time": (
+                r,
+                np.array([p.wall_time for p in piles]),
+                {"units": "s", "long_name": "wall-clock cost of placement and settling"},
+            ),
+            "diameter": (
+                "particle",
+                model.diameters,
+                {"units": "d_s", "long_name": "mobile-disk diameter"},
+            ),
+            "wall_position": (
+                ("wall", "xy"),
+                model.walls0,
+                {"units": "d_s", "long_name": "wall-disk centre (drum at rest)"},
+            ),
+        },  # fmt: skip
+        coords={
+            "replica": (
+                "replica",
+                np.asarray(replicas, np.int64),
+                {"units": "1", "long_name": "replica index"},
+            ),
+        },  # fmt: skip
+        attrs={
+            "n_mobile": model.n_mobile,
+            "n_wall": model.geom.n_wall,
+            "drum_radius": model.geom.radius,
+        },  # fmt: skip
+    )
+
+
+def settle_batch(section: Mapping, batch: int, *, threads: int = 1, log: Log = _quiet):
+    """Placement and settling of every replica of ``batch`` (the init file's Dataset)."""
+    sec = filled(section)
+    st = steps(sec)
+    physics = seed_physics(sec)
+    model = DrumModel.from_section(sec)
+    replicas = list(batch_replicas(int(batch), int(sec["ensemble"]["batch_size"])))
+    progress = Progress(len(replicas), st.settle_max, log, what="settling replica")
+    log(
+        f"init batch {batch}: replicas {replicas[0]}..{replicas[-1]}, N = {model.n_mobile}, "
+        f"drum radius {model.geom.radius:.3f} d_s, {threads} thread(s)"
+    )
+
+    def one(item):
+        k, replica = item
+        place_rng, _, seed = replica_streams(sec, replica, physics)
+        try:
+            pile = settle(
+                model, st, sec["settle"], place_rng,
+                on_chunk=lambda n, t: progress.update(k, n, t, "settling"),
+            )  # fmt: skip
+        except SimulationError as exc:
+            raise _with_context(exc, sec, replica, seed, "init") from exc
+        ns = pile.wall_time / max(1, pile.n_steps * model.n_mobile) * 1e9
+        progress.finish(
+            k,
+            f"{'settled' if pile.settled else 'NOT settled'} after {pile.settle_time:.2f} s "
+            f"({pile.wall_time:.1f} s wall, {ns:.0f} ns per particle-step)",
+        )
+        return seed, pile
+
+    out = _map(one, list(enumerate(replicas)), threads)
+    return _init_dataset(model, replicas, [s for s, _ in out], [p for _, p in out])
+
+
+def _expected_steps(st: Steps) -> int:
+    return st.pre_rotation + st.onset + st.decay
+
+
+def run_batch(section: Mapping, batch: int, init: xr.Dataset, *, threads: int = 1,
+              log: Log = _quiet) -> xr.Dataset:  # fmt: skip
+    """The protocol for every replica of ``batch`` from its settled pile (the run file)."""
+    sec = filled(section)
+    st = steps(sec)
+    physics = seed_physics(sec)
+    model = DrumModel.from_section(sec)
+    replicas = list(batch_replicas(int(batch), int(sec["ensemble"]["batch_size"])))
+    if list(init["replica"].values) != replicas:
+        raise ValueError(
+            f"init file holds replicas {list(init['replica'].values)}, batch {batch} needs "
+            f"{replicas}: was it made with another batch_size?"
+        )
+    progress = Progress(len(replicas), _expected_steps(st), log)
+    log(
+        f"runs batch {batch}: replicas {replicas[0]}..{replicas[-1]}, "
+        f"{_expected_steps(st)} steps each at least, {threads} thread(s)"
+    )
+
+    def one(item):
+        k, replica = item
+        _, tangent_rng, seed = replica_streams(sec, replica, physics)
+        if int(init["seed"].values[k]) != seed:
+            raise ValueError(f"replica {replica}: init file seed differs (other physics?)")
+        start = Settled(
+            positions=init["position"].values[k],
+            velocities=init["velocity"].values[k],
+            settled=bool(init["settled"].values[k]),
+            settle_time=float(init["settle_time"].values[k]),
+            n_steps=int(init["n_steps"].values[k]),
+            wall_time=float(init["wall_time"].values[k]),
+        )
+        try:
+            rec = run_protocol(
+                model, st, sec["protocol"], start, tangent_rng, replica=replica, seed=seed,
+                snapshots=(k == 0),
+                on_chunk=lambda n, t, phase: progress.update(k, n, t, phase),
+            )  # fmt: skip
+        except SimulationError as exc:
+            raise _with_context(exc, sec, replica, seed, "runs") from exc
+        ns = rec.wall_time / max(1, rec.n_steps * model.n_mobile) * 1e9
+        progress.finish(
+            k,
+            f"continuous avalanche at {rec.continuous_time:.2f} s, decay from "
+            f"{rec.decay_start:.2f} s; {rec.wall_time:.1f} s wall, {ns:.0f} ns per particle-step",
+        )
+        # the replica's total cost includes its settling
+        rec.wall_time += start.wall_time
+        rec.n_steps += start.n_steps
+        return rec
+
+    records = _map(one, list(enumerate(replicas)), threads)
+    return batch_dataset(records, st, model.diameters, model.geom.d_wall)
+
+
+def run_replica(section: Mapping, replica: int, *, log: Log = _quiet,
+                snapshots: bool = True) -> xr.Dataset:  # fmt: skip
+    """One replica by hand: placement, settling and protocol (a one-replica run file).
+
+    The same numbers as replica ``replica`` of the workflow with this section.
+    """
+    sec = filled(section)
+    st = steps(sec)
+    model = DrumModel.from_section(sec)
+    place_rng, tangent_rng, seed = replica_streams(sec, replica)
+    progress = Progress(1, st.settle_min + _expected_steps(st), log)
+    try:
+        pile = settle(model, st, sec["settle"], place_rng,
+                      on_chunk=lambda n, t: progress.update(0, n, t, "settling"))  # fmt: skip
+        rec = run_protocol(
+            model, st, sec["protocol"], pile, tangent_rng, replica=replica, seed=seed,
+            snapshots=snapshots,
+            on_chunk=lambda n, t, ph: progress.update(0, pile.n_steps + n, t, ph),
+        )  # fmt: skip
+    except SimulationError as exc:
+        raise _with_context(exc, sec, replica, seed, "replica") from exc
+    rec.wall_time += pile.wall_time
+    rec.n_steps += pile.n_steps
+    ns = rec.wall_time / max(1, rec.n_steps * model.n_mobile) * 1e9
+    log(
+        f"replica {replica} (seed {seed}): settled={pile.settled} after {pile.settle_time:.2f} s, "
+        f"continuous at {rec.continuous_time:.2f} s; {rec.n_steps} steps in {rec.wall_time:.1f} s "
+        f"({ns:.0f} ns per particle-step)"
+    )
+    return batch_dataset([rec], st, model.diameters, model.geom.d_wall)

@@ -1,0 +1,220 @@
+"""The ``drum:`` config section: defaults, the seeding subset, and times in steps.
+
+Config keys and units: ``config/README.md`` (drum section) and
+``workflow/schemas/drum.schema.yaml``. Physics is in reduced units (d_s, m_s,
+t0 = sqrt(d_s/g)); protocol and analysis times are in seconds, as the paper
+quotes them, and are converted here to whole numbers of steps of Δt.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import yaml
+
+from ..config import schema_dir
+from ..errors import ConfigError
+
+__all__ = [
+    "PHYSICS_KEYS",
+    "filled",
+    "seed_physics",
+    "Steps",
+    "steps",
+    "tiny_section",
+    "TINY_PROTOCOL",
+]
+
+PHYSICS_KEYS = ("physics", "settle", "protocol")
+"""Sub-sections that change a replica's trajectory: the seeding subset (with n_replicas
+and batch_size excluded, so that a larger ensemble reuses every batch)."""
+
+
+def _fill_defaults(instance, schema, root):
+    """Recursively set schema defaults (objects and their properties) in place."""
+    if "$ref" in schema:
+        ref = schema["$ref"]
+        if not ref.startswith("#/"):
+            raise ValueError(f"unsupported $ref {ref}")
+        target = root
+        for part in ref[2:].split("/"):
+            target = target[part]
+        schema = {**target, **{k: v for k, v in schema.items() if k != "$ref"}}
+    if isinstance(instance, dict) and "properties" in schema:
+        for key, sub in schema["properties"].items():
+            if key not in instance and "default" in sub:
+                instance[key] = copy.deepcopy(sub["default"])
+            if key in instance:
+                _fill_defaults(instance[key], sub, root)
+    return instance
+
+
+def filled(section: Mapping | None) -> dict:
+    """A deep copy of a ``drum`` section with every schema default filled in, checked.
+
+    The workflow's top-level validation does not fill defaults through the
+    ``$ref`` to ``drum.schema.yaml``, so library code always goes through this.
+
+    Raises
+    ------
+    ConfigError
+        naming the key, if the section violates the schema or a fit window is not
+        ordered.
+    """
+    import jsonschema
+
+    schema = yaml.safe_load((schema_dir() / "drum.schema.yaml").read_text())
+    sec = _fill_defaults(copy.deepcopy(dict(section or {})), schema, schema)
+    errors = sorted(
+        jsonschema.Draft202012Validator(schema).iter_errors(sec),
+        key=lambda e: list(map(str, e.absolute_path)),
+    )
+    if errors:
+        msgs = ["drum." + ".".join(map(str, e.absolute_path)) + f": {e.message}" for e in errors]
+        raise ConfigError("invalid drum configuration:\n  - " + "\n  - ".join(msgs))
+    for key in ("onset_vertex_window_s", "onset_zero_window_s", "decay_zero_window_s"):
+        lo, hi = sec["fits"][key]
+        if not lo < hi:
+            raise ConfigError(f"config key 'drum.fits.{key}' = {[lo, hi]} must be increasing")
+    if sec["protocol"]["decay_rotating_s"] >= sec["protocol"]["decay_window_s"]:
+        raise ConfigError(
+            "config key 'drum.protocol.decay_rotating_s' must be shorter than decay_window_s"
+        )
+    return sec
+
+
+def seed_physics(section: Mapping) -> dict:
+    """The subset of a (filled) section that defines a replica: physics, settle, protocol.
+
+    :func:`granpipe.seeds.replica_rng` hashes it; sample sizes, fits and figures are
+    not part of it.
+    """
+    sec = filled(section)
+    return {k: sec[k] for k in PHYSICS_KEYS}
+
+
+def _n_steps(seconds: float, dt_s: float, what: str) -> int:
+    n = seconds / dt_s
+    k = round(n)
+    if seconds > 0 and k == 0:
+        raise ConfigError(f"{what} = {seconds} s is shorter than one time step ({dt_s} s)")
+    return int(k)
+
+
+@dataclass(frozen=True)
+class Steps:
+    """Protocol durations of a section, in whole steps of Δt.
+
+    Attributes
+    ----------
+    dt : float [t0]
+    dt_s : float [s]
+    block : int
+        Steps per stored block mean (block_s rounded to a whole number of steps).
+    pre_rotation : int
+        Steps of rotation before t = 0 (1° = 62,500 steps at the paper's Ω and Δt).
+    onset : int
+        Steps of the onset window (a whole number of blocks).
+    decay_rotating : int
+        Steps of the decay window with the drum still turning (a whole number of blocks).
+    decay : int
+        Steps of the decay window (a whole number of blocks).
+    chunk : int
+        Steps per engine call (a whole number of blocks).
+    continuous_hold : int
+        Blocks the continuous-avalanche criterion looks back over.
+    max_rotation : int
+        Steps after t = 0 by which the avalanche must be continuous.
+    settle_min, settle_max : int
+        Steps of settling at least / at most (whole numbers of blocks).
+    settle_hold : int
+        Blocks the settling criterion looks back over.
+    """
+
+    dt: float
+    dt_s: float
+    block: int
+    pre_rotation: int
+    onset: int
+    decay_rotating: int
+    decay: int
+    chunk: int
+    continuous_hold: int
+    max_rotation: int
+    settle_min: int
+    settle_max: int
+    settle_hold: int
+
+    @property
+    def block_s(self) -> float:
+        """Duration of one stored block [s]."""
+        return self.block * self.dt_s
+
+    @property
+    def block_t0(self) -> float:
+        """Duration of one stored block [t0]."""
+        return self.block * self.dt
+
+
+def steps(section: Mapping) -> Steps:
+    """Convert the protocol times of a section (seconds, degrees) into steps."""
+    sec = filled(section)
+    ph, pr, st = sec["physics"], sec["protocol"], sec["settle"]
+    dt = float(ph["dt"])
+    dt_s = dt * float(ph["t0_s"])
+    block = _n_steps(pr["block_s"], dt_s, "drum.protocol.block_s")
+
+    def blocks(seconds, what):  # whole number of blocks, at least one
+        return max(1, math.ceil(_n_steps(seconds, dt_s, what) / block - 1e-9))
+
+    pre = round(math.radians(pr["pre_rotation_deg"]) / (float(ph["omega"]) * dt))
+    return Steps(
+        dt=dt,
+        dt_s=dt_s,
+        block=block,
+        pre_rotation=int(pre),
+        onset=block * blocks(pr["onset_window_s"], "drum.protocol.onset_window_s"),
+        decay_rotating=block * round(_n_steps(pr["decay_rotating_s"], dt_s, "") / block),
+        decay=block * blocks(pr["decay_window_s"], "drum.protocol.decay_window_s"),
+        chunk=block * blocks(pr["chunk_s"], "drum.protocol.chunk_s"),
+        continuous_hold=blocks(pr["continuous_hold_s"], "drum.protocol.continuous_hold_s"),
+        max_rotation=_n_steps(pr["max_rotation_s"], dt_s, "drum.protocol.max_rotation_s"),
+        settle_min=block * round(_n_steps(st["min_time_s"], dt_s, "") / block),
+        settle_max=block * blocks(st["max_time_s"], "drum.settle.max_time_s"),
+        settle_hold=blocks(st["hold_s"], "drum.settle.hold_s"),
+    )
+
+
+TINY_PROTOCOL = {
+    "pre_rotation_deg": 0.2,
+    "onset_window_s": 0.6,
+    "decay_window_s": 0.6,
+    "decay_rotating_s": 0.2,
+    "continuous_hold_s": 0.2,
+    "max_rotation_s": 1.0,
+    "chunk_s": 0.2,
+}
+"""Short windows for the tiny drum (tests, ``granpipe drum replica --tiny``)."""
+
+TINY_SETTLE = {"min_time_s": 0.4, "max_time_s": 1.0}
+
+
+def tiny_section(section: Mapping | None = None, n_wall: int = 40, **protocol) -> dict:
+    """A section with a tiny drum (:func:`granpipe.drum.geometry.tiny_physics`).
+
+    Same disks, contact law, Δt and Ω as the paper, 40 wall disks (radius 8.8 d_s) and
+    23 + 23 mobile disks (the paper's filling fraction); settling and protocol
+    shortened (:data:`TINY_PROTOCOL`, :data:`TINY_SETTLE`; ``protocol`` overrides
+    keys) so that one replica takes about a second.
+    """
+    from .geometry import tiny_physics
+
+    sec = filled(section)
+    sec["physics"] = tiny_physics(n_wall, sec["physics"])
+    sec["protocol"].update(TINY_PROTOCOL)
+    sec["protocol"].update(protocol)
+    sec["settle"].update(TINY_SETTLE)
+    return filled(sec)

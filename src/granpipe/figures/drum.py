@@ -1,0 +1,276 @@
+"""Figures of the drum study (Maghsoodi & Luijten 2016, Figs. 2-5): data in, Figure out.
+
+* :func:`fig2_snapshot` — disks coloured by speed, before the onset and during the
+  avalanche (one replica).
+* :func:`fig3_onset` — ensemble-mean λ(t) (points), λ̄ (Eq. 2), low-pass, the linear fit
+  of the sign change, and V(t) on a second axis, onset window.
+* :func:`fig4_decay` — the same for the decay window (drum stopped at t = 5 s).
+* :func:`fig5_lambda_vs_speed` — λ̄ against V for onset and decay, arrows along time.
+
+Inputs are the datasets the pipeline writes: the ensemble file (``reduce_runs``), the
+fits file (fitted numbers plus the curves of ``drum_fits``) and a run file holding a
+snapshot. :func:`save` writes ``fig<k>_<name>.png`` and ``.pdf`` atomically.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import xarray as xr  # noqa: E402
+from matplotlib.collections import EllipseCollection  # noqa: E402
+
+from ..io import atomic_path  # noqa: E402
+
+__all__ = [
+    "fig2_snapshot",
+    "fig3_onset",
+    "fig4_decay",
+    "fig5_lambda_vs_speed",
+    "save",
+]
+
+LAMBDA_COLOR = "tab:blue"
+LAMBDA_BAR_COLOR = "#6baed6"
+FIT_COLOR = "tab:orange"
+SPEED_COLOR = "tab:red"
+
+
+def _value(fits: xr.Dataset, name: str) -> float:
+    return float(fits[name].values) if name in fits else np.nan
+
+
+def _ci_text(fits: xr.Dataset, name: str) -> str:
+    v = _value(fits, name)
+    if not np.isfinite(v):
+        return "n/a"
+    e = _value(fits, f"{name}_fit_error")
+    lo, hi = _value(fits, f"{name}_ci_low"), _value(fits, f"{name}_ci_high")
+    txt = f"{v:.2f} ± {e:.2f} s" if np.isfinite(e) else f"{v:.2f} s"
+    if np.isfinite(lo) and np.isfinite(hi):
+        txt += f" [{lo:.2f}, {hi:.2f}]"
+    return txt
+
+
+def _window_plot(ens, fits, window: str, ax=None, mode: str = "config"):
+    """λ points, λ̄, low-pass, fit segment(s) and V on a twin axis, for one window."""
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(7.0, 4.2), layout="constrained")
+    else:
+        fig = ax.figure
+    t = ens[f"seconds_{window}"].values
+    lam = ens[f"lambda_{window}_mean"]
+    ax.plot(t, lam.values, ".", ms=1.5, color=LAMBDA_COLOR, alpha=0.35, label="λ(t), ensemble mean")
+    ax.plot(
+        t,
+        fits[f"lambda_bar_{window}"].values,
+        "--",
+        color=LAMBDA_BAR_COLOR,
+        lw=1.8,
+        label="λ̄(t), moving average (Eq. 2)",
+    )
+    ax.plot(
+        t,
+        fits[f"lambda_lowpass_{window}"].values,
+        "-",
+        color="k",
+        lw=0.8,
+        alpha=0.6,
+        label="FFT low-pass",
+    )
+    for label, style in (("config", "-"), ("auto", ":")):
+        name = f"fit_lambda_{window}_{label}"
+        if name in fits and np.isfinite(fits[name].values).any():
+            ax.plot(
+                t,
+                fits[name].values,
+                style,
+                color=FIT_COLOR,
+                lw=3 if label == "config" else 2,
+                label=f"linear fit ({label} window)",
+            )
+    ax.axhline(0.0, color="0.5", lw=0.6)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel(f"λ [{lam.attrs.get('units', '')}]", color=LAMBDA_COLOR)
+    # λ block means are noisy: scale the axis to the smoothed curve, not the outliers.
+    lb = fits[f"lambda_bar_{window}"].values
+    if np.isfinite(lb).any():
+        lo, hi = np.nanmin(lb), np.nanmax(lb)
+        pad = 1.5 * max(hi - lo, 1e-12)
+        ax.set_ylim(min(lo - pad, -0.1 * pad), max(hi + pad, 0.1 * pad))
+    ax2 = ax.twinx()
+    V = ens[f"speed_{window}_mean"]
+    ax2.plot(t, V.values, "-.", color=SPEED_COLOR, lw=1.4, label="V(t)")
+    if window == "onset":
+        name = "fit_speed_onset_config"
+        if name in fits:
+            ax2.plot(
+                t,
+                fits[name].values,
+                "-",
+                color="darkred",
+                lw=2.5,
+                alpha=0.7,
+                label="quadratic fit of V",
+            )
+    ax2.set_ylabel(f"V [{V.attrs.get('units', '')}]", color=SPEED_COLOR)
+    ax2.set_ylim(bottom=0)
+    h1, l1 = ax.get_legend_handles_labels()
+    h2, l2 = ax2.get_legend_handles_labels()
+    ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="lower right", framealpha=0.8)
+    ax.set_xlim(t[0], t[-1])
+    return fig, ax, ax2
+
+
+def fig3_onset(ens: xr.Dataset, fits: xr.Dataset) -> plt.Figure:
+    """Fig. 3: chaotic behaviour at avalanche onset (paper: onset 2.628 s, sign change 14.5 s)."""
+    fig, ax, _ = _window_plot(ens, fits, "onset")
+    t_on = _value(fits, "onset_time")
+    t_sc = _value(fits, "onset_sign_change_time")
+    for x, ls in ((t_on, ":"), (t_sc, "--")):
+        if np.isfinite(x):
+            ax.axvline(x, color="0.3", ls=ls, lw=0.8)
+    n = int(ens.attrs.get("n_replicas", 0))
+    ax.set_title(
+        f"Avalanche onset ({n} replicas): onset {_ci_text(fits, 'onset_time')}, "
+        f"sign change {_ci_text(fits, 'onset_sign_change_time')}",
+        fontsize=8,
+    )
+    return fig
+
+
+def fig4_decay(ens: xr.Dataset, fits: xr.Dataset) -> plt.Figure:
+    """Fig. 4: dynamics at avalanche decay (drum stopped at 5 s; paper: sign change 8.13 s)."""
+    fig, ax, _ = _window_plot(ens, fits, "decay")
+    stop = float(ens.attrs.get("stop_time_s", np.nan))
+    if np.isfinite(stop):
+        ax.axvline(stop, color="0.3", ls=":", lw=0.8)
+    t_sc = _value(fits, "decay_sign_change_time")
+    if np.isfinite(t_sc):
+        ax.axvline(t_sc, color="0.3", ls="--", lw=0.8)
+    n = int(ens.attrs.get("n_replicas", 0))
+    ax.set_title(
+        f"Avalanche decay ({n} replicas): drum stopped at {stop:.2f} s, "
+        f"sign change {_ci_text(fits, 'decay_sign_change_time')}",
+        fontsize=8,
+    )
+    return fig
+
+
+def _arrows(ax, x, y, color, n_arrows=6):
+    good = np.flatnonzero(np.isfinite(x) & np.isfinite(y))
+    if len(good) < 4:
+        return
+    idx = good[np.linspace(0, len(good) - 2, n_arrows + 2).astype(int)[1:-1]]
+    step = max(1, len(good) // 100)
+    for i in idx:
+        j = min(i + step, good[-1])
+        ax.annotate(
+            "",
+            xy=(x[j], y[j]),
+            xytext=(x[i], y[i]),
+            arrowprops=dict(arrowstyle="-|>", color=color, lw=1.2, mutation_scale=14),
+        )
+
+
+def fig5_lambda_vs_speed(ens: xr.Dataset, fits: xr.Dataset) -> plt.Figure:
+    """Fig. 5: λ̄ against V(t), onset (red) and decay (blue); arrows show time's direction.
+
+    V is smoothed with the same moving average as λ̄ so both curves have one resolution.
+    """
+    from ..analysis.smoothing import moving_average
+
+    q = int(fits.attrs.get("moving_average_q", 0))
+    fig, ax = plt.subplots(figsize=(5.5, 4.2), layout="constrained")
+    for w, color in (("onset", "tab:red"), ("decay", "tab:blue")):
+        V = moving_average(ens[f"speed_{w}_mean"].values, q)
+        lb = fits[f"lambda_bar_{w}"].values
+        ax.plot(V, lb, "-", color=color, lw=1.5, label=w)
+        _arrows(ax, V, lb, color)
+    ax.axhline(0.0, color="0.5", lw=0.6)
+    ax.set_xlabel(f"V [{ens['speed_onset_mean'].attrs.get('units', '')}]")
+    ax.set_ylabel(f"λ̄ [{ens['lambda_onset_mean'].attrs.get('units', '')}]")
+    ax.legend(title="avalanche", fontsize=8)
+    return fig
+
+
+def fig2_snapshot(run: xr.Dataset) -> plt.Figure:
+    """Fig. 2-style snapshots of one replica, disks coloured by speed (blue slow, red fast).
+
+    Parameters
+    ----------
+    run : a run file holding ``snapshot_position``/``snapshot_velocity``
+        (snapshot, particle, xy), ``diameter`` (particle), ``wall_position``
+        (snapshot, wall, xy) and ``wall_diameter``.
+    """
+    snaps = list(run["snapshot"].values)
+    fig, axes = plt.subplots(1, len(snaps), figsize=(4.6 * len(snaps), 4.4), layout="constrained")
+    axes = np.atleast_1d(axes)
+    d = run["diameter"].values
+    dw = float(run["wall_diameter"].values)
+    titles = run["snapshot"].attrs.get("descriptions", "").split(";")
+    for k, ax in enumerate(axes):
+        pos = run["snapshot_position"].values[k]
+        vel = run["snapshot_velocity"].values[k]
+        wall = run["wall_position"].values[k]
+        speed = np.hypot(vel[:, 0], vel[:, 1])
+        cmap = plt.get_cmap("jet")
+        vmax = max(float(np.nanmax(speed)), 1e-12)
+        disks = EllipseCollection(
+            d,
+            d,
+            np.zeros_like(d),
+            units="xy",
+            offsets=pos,
+            offset_transform=ax.transData,
+            cmap=cmap,
+            edgecolors="k",
+            linewidths=0.2,
+        )
+        disks.set_array(speed)
+        disks.set_clim(0.0, vmax)
+        ax.add_collection(disks)
+        walls = EllipseCollection(
+            np.full(len(wall), dw),
+            np.full(len(wall), dw),
+            np.zeros(len(wall)),
+            units="xy",
+            offsets=wall,
+            offset_transform=ax.transData,
+            facecolors="0.6",
+            edgecolors="0.3",
+            linewidths=0.2,
+        )
+        ax.add_collection(walls)
+        r = np.max(np.hypot(wall[:, 0], wall[:, 1])) + dw
+        ax.set_xlim(-r, r)
+        ax.set_ylim(-r, r)
+        ax.set_aspect("equal")
+        ax.set_xticks([])
+        ax.set_yticks([])
+        label = f"({'abcdefgh'[k]}) {snaps[k]}"
+        if k < len(titles) and titles[k]:
+            label += f": {titles[k]}"
+        ax.set_title(label, fontsize=8)
+        cb = fig.colorbar(disks, ax=ax, shrink=0.7)
+        cb.set_label(f"speed [{run['snapshot_velocity'].attrs.get('units', '')}]")
+    return fig
+
+
+def save(fig: plt.Figure, stem: str | os.PathLike, dpi: int = 200) -> list[Path]:
+    """Write ``<stem>.png`` and ``<stem>.pdf`` atomically; close the figure."""
+    stem = Path(stem)
+    paths = []
+    for ext in ("png", "pdf"):
+        path = stem.with_suffix(f".{ext}")
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format=ext, dpi=dpi)
+        paths.append(path)
+    plt.close(fig)
+    return paths

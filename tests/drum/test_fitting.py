@@ -1,0 +1,134 @@
+"""Drum fit pipeline on synthetic ensembles with a known vertex and known zeros."""
+
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from granpipe.drum.fitting import PAPER_VALUES, drum_fits, load_units, reduce_runs
+from granpipe.drum.settings import filled
+
+from .conftest import synthetic_runs
+
+FITS = {**filled({})["fits"], "bootstrap_resamples": 300}
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    return synthetic_runs(tmp_path_factory.mktemp("runs"))
+
+
+@pytest.fixture(scope="module")
+def fitted(runs):
+    ens = reduce_runs(runs)
+    units = load_units(runs, "replica")
+    results, curves = drum_fits(ens, units, FITS)
+    return ens, {r.quantity: r for r in results}, curves
+
+
+def test_ensemble_matches_numpy_over_all_replicas(runs):
+    import xarray as xr
+
+    ens = reduce_runs(runs)
+    allv = np.concatenate([xr.open_dataset(p)["lambda_onset"].values for p in runs])
+    np.testing.assert_allclose(ens["lambda_onset_mean"].values, allv.mean(0), rtol=1e-12)
+    np.testing.assert_allclose(
+        ens["lambda_onset_sem"].values, allv.std(0, ddof=1) / np.sqrt(len(allv)), rtol=1e-10
+    )
+    assert ens.attrs["n_replicas"] == 12 and ens.attrs["n_batches"] == 3
+    assert (ens["speed_decay_count"].values == 12).all()
+    assert ens["seconds_onset"].attrs["units"] == "s"
+
+
+def test_flagged_replicas_are_left_out(tmp_path):
+    import xarray as xr
+
+    paths = synthetic_runs(tmp_path, n_batches=1, batch_size=4)
+    ds = xr.open_dataset(paths[0]).load()
+    ds["continuous"].values[1] = 0
+    ds["settled"].values[2] = 0
+    ds.to_netcdf(tmp_path / "flagged.nc")
+    ens = reduce_runs([tmp_path / "flagged.nc"])
+    assert ens.attrs["n_replicas"] == 2 and ens.attrs["n_excluded"] == 2
+    expected = ds["speed_onset"].values[[0, 3]].mean(0)
+    np.testing.assert_allclose(ens["speed_onset_mean"].values, expected, rtol=1e-12)
+    kept = reduce_runs([tmp_path / "flagged.nc"], exclude_flagged=False)
+    assert kept.attrs["n_replicas"] == 4
+
+
+def test_known_vertex_zeros_and_lags_are_recovered(fitted):
+    _, r, _ = fitted
+    truth = {
+        "onset_time": 3.0,
+        "onset_sign_change_time": 12.0,
+        "onset_lag": 9.0,
+        "decay_sign_change_time": 8.0,
+        "decay_lag": 8.0 - 5.0,
+    }
+    for name, value in truth.items():
+        for suffix in ("", "_auto"):
+            res = r[name + suffix]
+            # within ~4 standard errors, by the fit error and by the bootstrap interval
+            # (a 95 % interval spans ~3.9 sigma); coverage itself is tested in tests/analysis
+            assert abs(res.value - value) < 4 * res.fit_error + 0.02, (name + suffix, res)
+            assert abs(res.value - value) < 2 * (res.ci_high - res.ci_low), (name + suffix, res)
+            assert res.ci_low < res.value < res.ci_high
+            assert res.n == 12 and res.unit == "s"
+    # The automatic windows are centred where the data say (vertex 3, zeros 12 and 8).
+    assert abs(np.mean(r["onset_time_auto"].window) - 3.0) < 0.3
+    assert abs(np.mean(r["onset_sign_change_time_auto"].window) - 12.0) < 1.0
+    # lambda-bar crossings carry a bootstrap CI but no fit error
+    lb = r["onset_lambda_bar_zero_time"]
+    assert np.isnan(lb.fit_error) and abs(lb.value - 12.0) < 2 * (lb.ci_high - lb.ci_low)
+
+
+def test_decay_lag_refers_to_the_stop_time(fitted):
+    ens, r, _ = fitted
+    stop = ens.attrs["stop_time_s"]
+    assert stop == pytest.approx(5.0, abs=1e-4)
+    d = r["decay_sign_change_time"]
+    assert r["decay_lag"].value == pytest.approx(d.value - stop)
+
+
+def test_batch_means_bootstrap_agrees_with_replicas(runs, fitted):
+    ens, r, _ = fitted
+    units = load_units(runs, "batch")
+    assert units["onset"].speed.shape[0] == 3 and units["onset"].counts.max() == 4
+    results, _ = drum_fits(ens, units, {**FITS, "auto_windows": False})
+    rb = {x.quantity: x for x in results}
+    # same central values (same ensemble), intervals from 3 batch means instead of 12 replicas
+    assert rb["onset_time"].value == pytest.approx(r["onset_time"].value)
+    assert np.isfinite(rb["onset_time"].ci_low)
+
+
+def test_smoothed_curves_follow_the_line(fitted):
+    ens, _, curves = fitted
+    t = ens["seconds_onset"].values
+    inside = (t > 2) & (t < 23)
+    for name in ("lambda_bar_onset", "lambda_lowpass_onset"):
+        y = curves[name].values[inside]
+        assert np.nanmax(np.abs(y - 0.02 * (t[inside] - 12.0))) < 0.05, name
+    fit = curves["fit_lambda_onset_config"].values
+    assert np.isfinite(fit[(t > 10.1) & (t < 19.9)]).all() and np.isnan(fit[t < 9.9]).all()
+
+
+def test_paper_values_are_the_papers():
+    assert PAPER_VALUES["onset_time"] == 2.628
+    assert PAPER_VALUES["onset_sign_change_time"] == 14.5
+    assert PAPER_VALUES["decay_sign_change_time"] == 8.13
+    assert PAPER_VALUES["onset_lag"] == pytest.approx(11.872)
+
+
+def test_ensemble_memory_does_not_grow_with_batches(tmp_path):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    few = synthetic_runs(tmp_path / "a", n_batches=2, batch_size=2)
+    many = synthetic_runs(tmp_path / "b", n_batches=12, batch_size=2)
+    peaks = []
+    for paths in (few, many):
+        reduce_runs(paths)  # warm imports and caches
+        tracemalloc.start()
+        reduce_runs(paths)
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+    assert peaks[1] < 1.3 * peaks[0], peaks

@@ -1,0 +1,126 @@
+"""The protocol on a tiny drum: dims, units, provenance, batching invariance, blow-ups."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from granpipe.drum.protocol import DrumModel, run_replica
+from granpipe.drum.settings import seed_physics, steps
+from granpipe.drum.stages import init_stage, runs_stage
+from granpipe.errors import SimulationError
+from granpipe.io import config_from_attrs, read_dataset
+from granpipe.seeds import replica_seed
+
+
+def _stages(sec, tmp, batch, threads):
+    init = tmp / f"init_{batch}.nc"
+    run = tmp / f"run_{batch}.nc"
+    init_stage(sec, batch, init, threads=threads)
+    runs_stage(sec, batch, init, run, threads=threads)
+    return read_dataset(init), read_dataset(run)
+
+
+@pytest.fixture(scope="module")
+def batch2(tiny, tmp_path_factory):
+    """Replicas 0 and 1 in one batch of 2, run side by side in 2 threads."""
+    return _stages(tiny, tmp_path_factory.mktemp("b2"), 0, threads=2)
+
+
+def test_run_file_dims_units_and_provenance(tiny, batch2):
+    init, run = batch2
+    st = steps(tiny)
+    n_on, n_de = st.onset // st.block, st.decay // st.block
+    assert run["lambda_onset"].dims == ("replica", "time_onset")
+    assert run["speed_decay"].dims == ("replica", "time_decay")
+    assert run.sizes == {**run.sizes, "replica": 2, "time_onset": n_on, "time_decay": n_de}
+    assert list(run["replica"].values) == [0, 1]
+    assert run["lambda_onset"].attrs["units"] == "1/t0"
+    assert run["speed_onset"].attrs["units"] == "d_s/t0"
+    assert run["time_onset"].attrs["units"] == "t0" and run["seconds_onset"].attrs["units"] == "s"
+    np.testing.assert_allclose(run["seconds_onset"].values, run["time_onset"].values * 0.034975)
+    # block centres of 4 ms blocks
+    np.testing.assert_allclose(run["seconds_onset"].values[:2], [0.002, 0.006], rtol=1e-4)
+    for name, var in {**run.data_vars, **run.coords}.items():
+        assert "units" in var.attrs and "long_name" in var.attrs, name
+    phys = seed_physics(tiny)
+    seeds = [replica_seed("drum", phys, r) for r in (0, 1)]
+    assert list(run["seed"].values) == seeds
+    assert run.attrs["seeds"] == " ".join(map(str, seeds))
+    assert config_from_attrs(run)["physics"]["n_wall"] == 40
+    assert run.attrs["git_commit"] and run.attrs["stage"] == "runs"
+    # the stop time of the decay window
+    assert run.attrs["stop_time_s"] == pytest.approx(0.2, abs=1e-4)
+    # λ and V are finite block means, V positive
+    assert np.isfinite(run["lambda_onset"].values).all()
+    assert (run["speed_onset"].values > 0).all() and (run["speed_decay"].values > 0).all()
+    # snapshots of the first replica: mobile disks inside the drum, no deep overlap
+    pos = run["snapshot_position"].values
+    assert pos.shape == (2, 46, 2)
+    geom = DrumModel.from_section(tiny).geom
+    assert np.hypot(pos[..., 0], pos[..., 1]).max() < geom.inner_radius
+    assert init["position"].dims == ("replica", "particle", "xy")
+
+
+def test_drum_stops_at_the_stop_time(tiny, batch2):
+    """After the stop the wall disks are still: V loses its rigid-rotation part at once."""
+    _, run = batch2
+    wall = run["wall_position"].values  # snapshots at t = 0 and at the decay start
+    # the drum turned between the two snapshots (clockwise: polar angle decreases)
+    a0 = np.arctan2(wall[0, :, 1], wall[0, :, 0])
+    a1 = np.arctan2(wall[1, :, 1], wall[1, :, 0])
+    turned = np.angle(np.exp(1j * (a1 - a0)))
+    assert np.all(turned < 0)
+    st = steps(tiny)
+    expected = -tiny["physics"]["omega"] * (run["decay_start"].values[0] / st.dt_s) * st.dt
+    np.testing.assert_allclose(turned, expected, rtol=1e-6)
+
+
+def test_replica_is_bit_identical_whatever_the_batching(tiny, batch2, tmp_path):
+    """Batch of 2 in 2 threads vs two batches of 1 in 1 thread: the same numbers."""
+    _, run2 = batch2
+    one = {**tiny, "ensemble": {**tiny["ensemble"], "batch_size": 1}}
+    runs = [_stages(one, tmp_path, b, threads=1)[1] for b in (0, 1)]
+    for r in (0, 1):
+        for name in ("lambda_onset", "speed_onset", "lambda_decay", "speed_decay", "seed"):
+            np.testing.assert_array_equal(
+                run2[name].sel(replica=r).values, runs[r][name].sel(replica=r).values
+            )
+
+
+def test_replica_by_hand_equals_the_workflow(tiny, batch2):
+    _, run = batch2
+    ds = run_replica(tiny, 1, snapshots=False)
+    for name in ("lambda_onset", "speed_decay", "continuous_time", "settle_time"):
+        np.testing.assert_array_equal(ds[name].values[0], run[name].sel(replica=1).values)
+
+
+def test_blowup_names_study_point_replica_seed_and_step(tiny):
+    # a contact time of 3e-4 t0, a quarter of the step: the integration blows up
+    bad = {**tiny, "physics": {**tiny["physics"], "k_n": 1.0e8}}
+    with pytest.raises(SimulationError) as err:
+        run_replica(bad, 3)
+    msg = str(err.value)
+    seed = replica_seed("drum", seed_physics(bad), 3)
+    for part in ("study=drum", "replica=3", f"seed={seed}", "step=", "point=N=46"):
+        assert part in msg, msg
+
+
+def test_cli_replica_writes_a_run_file(tmp_path, repo):
+    out = tmp_path / "run.nc"
+    granpipe = str(Path(sys.executable).with_name("granpipe"))
+    proc = subprocess.run(
+        [granpipe, "drum", "replica", "--seed", "5", "--tiny", "--out", str(out)],
+        cwd=repo,
+        capture_output=True,
+        text=True,
+        stdin=subprocess.DEVNULL,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stderr
+    ds = xr.open_dataset(out)
+    assert int(ds["replica"].values[0]) == 5 and ds.attrs["stage"] == "replica"
+    assert "ns per particle-step" in proc.stderr
