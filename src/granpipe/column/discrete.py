@@ -1,0 +1,1259 @@
+"""The discrete tapped column: Eq. (19) with the tap drive of Eqs. (2)–(3), and its tangent.
+
+Physics (paper Eqs. 4–19, monodisperse, SPEC §2). Particle i (0-based here) at height
+y_i, velocity v_i; contact j sits below particle j: contact 0 between the floor y0(t) and
+particle 0, contact j ≥ 1 between particles j−1 and j. Its compression and separation rate
+are::
+
+    c_0 = r − (y_0 − y0(t)),        w_0 = v_0 − ẏ0(t)
+    c_j = 2r − (y_j − y_{j−1}),     w_j = v_j − v_{j−1}
+
+and the Walton–Braun–Mindlin force it exerts (repulsive, Eq. 18) is
+F_j = K [1 − e σ(w_j)] c_j χ(c_j), so that m ÿ_i = −m g + F_i − F_{i+1} (Eq. 19;
+F_N = 0). Loading (w < 0) uses the stiffer spring K(1 + e), unloading K(1 − e).
+
+How the exact sign and step (Eq. 9) are integrated. Between switches the system is
+linear, so a contact is in one of four *modes*:
+
+* ``OPEN``   c ≤ 0, F = 0
+* ``LOAD``   c > 0, w < 0, F = K(1 + e) c
+* ``UNLOAD`` c > 0, w > 0, F = K(1 − e) c
+* ``STICK``  c > 0, w ≡ 0: the Filippov sliding mode of the discontinuity at w = 0. Any
+  force in the band [K(1 − e) c, K(1 + e) c] is admissible (σ(0) ∈ [−1, 1]); the two
+  particles (or particle and floor) move as one rigid block and the force is the one
+  that keeps them together. This is how the column comes to rest in finite time: the
+  WBM hysteresis acts like dry friction at w = 0, and the equilibrium start of Eq. (27)
+  is such a stuck state with σ(0) = 0 exactly.
+
+Within a mode the equations are integrated with classical RK4 at a fixed step h. Every
+switch is *located* (event location): event functions (c for OPEN→LOAD and UNLOAD→OPEN,
+w for LOAD/UNLOAD, the distance of the required force to the band edges for STICK) are
+checked at the end of each step; a sign change is bracketed and its time found by
+Illinois regula falsi on RK4 sub-steps of the same step (dense output of order 4), the
+step is cut there, the mode updated and integration restarted. At a w = 0 event the
+contact is first tried in STICK; if the force it needs leaves the band it is released
+into LOAD or UNLOAD, and released contacts are checked for consistency (the sign of their
+relative acceleration), an active-set iteration over the chain. Floor velocity jumps at
+t = kT and kT + π/ω (Eq. 3) are time events at segment boundaries. The global error is
+O(h⁴) away from grazing contacts; the restitution test shows it (tests/column).
+
+Tangent dynamics. Inside a mode the variational equations are the linear mode equations
+with g = 0 and the floor unperturbed (δc_0 = −δy_0), integrated by the same RK4 stages,
+so the tangent is the exact derivative of the discrete map between switches. At a switch
+of σ at c > 0 (LOAD↔UNLOAD, or entry into STICK) the vector field jumps and the tangent
+is corrected by the saltation matrix S = I + (f₊ − f₋) ∇w / ẇ₋ (Müller 1995; Dieci &
+Lopez 2011): δv ← δv + (a₊ − a₋) δw / ẇ₋. At entry into STICK this sets δw to zero (the
+sliding mode removes the transverse direction). Switches where the field is continuous
+(c = 0: the force vanishes there; release from STICK at a band edge) and time-triggered
+switches need no correction (S = I). With ``saltation=False`` the correction is skipped
+("plain variational" dynamics), to measure what it changes.
+
+The smooth model (Eq. 30: σ → tanh(α_σ s), χ → (1 + tanh(α_χ s))/2) has no switches; it
+is integrated with the same fixed-step RK4 and its analytic Jacobian.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._jit import njit
+
+__all__ = [
+    "OPEN",
+    "LOAD",
+    "UNLOAD",
+    "STICK",
+    "STATUS_OK",
+    "STATUS_OVERLAP",
+    "STATUS_NONFINITE",
+    "STATUS_ZENO",
+    "N_STATS",
+    "STAT_NAMES",
+]
+
+# Contact modes.
+OPEN = 0
+LOAD = 1
+UNLOAD = 2
+STICK = 3
+
+# Packed parameters (ColumnParams.as_array()).
+P_M = 0
+P_R = 1
+P_G = 2
+P_K = 3
+P_E = 4
+P_A = 5
+P_OMEGA = 6
+P_T = 7
+P_ASIG = 8
+P_ACHI = 9
+P_TAU = 10
+
+# Return codes of the kernels.
+STATUS_OK = 0
+STATUS_OVERLAP = 1
+STATUS_NONFINITE = 2
+STATUS_ZENO = 3
+
+# Counters (stats array).
+S_STEPS = 0
+S_EVENTS = 1
+S_STICKS = 2
+S_RELEASES = 3
+S_CROSSINGS = 4
+S_OPENCLOSE = 5
+S_SAFETY = 6
+S_CAP = 7
+S_SALT_BIG = 8
+N_STATS = 9
+STAT_NAMES = (
+    "steps",
+    "events",
+    "stick_entries",
+    "stick_releases",
+    "sign_crossings",
+    "open_close",
+    "late_detections",
+    "active_set_cap_hits",
+    "large_saltation",
+)
+
+_BIG = 1e300
+
+# Rows of the work array W, shape (N_WORK, N).
+W_Y1 = 0
+W_V1 = 1
+W_DY1 = 2
+W_DV1 = 3
+W_YT = 4
+W_VT = 5
+W_DYT = 6
+W_DVT = 7
+W_KY = 8  # 4 rows
+W_KV = 12  # 4 rows
+W_KDY = 16  # 4 rows
+W_KDV = 20  # 4 rows
+W_C = 24
+W_W = 25
+W_F = 26
+W_ACC = 27
+W_DC = 28
+W_DF = 29
+W_DACC = 30
+W_AMINUS = 31
+W_YS = 32
+W_VS = 33
+N_WORK = 34
+
+
+# --------------------------------------------------------------------------- drive
+@njit
+def floor_motion(t, tap_start, in_tap, a, omega):
+    """Floor position, velocity, acceleration at time t (Eqs. 2–3).
+
+    ``in_tap`` selects the branch explicitly (segments never straddle a switch), so the
+    jumps of ẏ0 at kT and kT + π/ω are exact time events.
+    """
+    if in_tap:
+        s = omega * (t - tap_start)
+        return a * math.sin(s), a * omega * math.cos(s), -a * omega * omega * math.sin(s)
+    return 0.0, 0.0, 0.0
+
+
+# --------------------------------------------------------------------------- geometry
+@njit
+def compressions(y, yf, r, c):
+    """c_0 = r − (y_0 − yf), c_j = 2r − (y_j − y_{j−1}) into ``c`` (N,)."""
+    n = y.size
+    c[0] = r - (y[0] - yf)
+    for j in range(1, n):
+        c[j] = 2.0 * r - (y[j] - y[j - 1])
+
+
+@njit
+def separation_rates(v, vf, w):
+    """w_0 = v_0 − vf, w_j = v_j − v_{j−1} into ``w`` (N,)."""
+    n = v.size
+    w[0] = v[0] - vf
+    for j in range(1, n):
+        w[j] = v[j] - v[j - 1]
+
+
+@njit
+def block_accelerations(c, modes, K, e, m, g, af, F, acc):
+    """Accelerations of a chain whose contacts are in the given modes.
+
+    Contacts in STICK glue particles into rigid blocks; a block glued to the floor moves
+    with it (acceleration ``af``). Each block accelerates under gravity and the forces of
+    its two boundary contacts; the force in each stuck contact is then the one that keeps
+    the part of the block above it on the block's motion. With g = 0, af = 0 and ``c`` the
+    perturbation δc, the same function gives the tangent accelerations.
+
+    Parameters
+    ----------
+    c : (N,) compressions [length]
+    modes : (N,) int8 contact modes
+    F : (N,) out, repulsive contact forces [force] (required force for STICK contacts)
+    acc : (N,) out, accelerations [length/time²]
+    """
+    n = c.size
+    kl = K * (1.0 + e)
+    ku = K * (1.0 - e)
+    for j in range(n):
+        md = modes[j]
+        if md == LOAD:
+            F[j] = kl * c[j]
+        elif md == UNLOAD:
+            F[j] = ku * c[j]
+        else:
+            F[j] = 0.0
+    p = 0
+    while p < n:
+        q = p
+        while q + 1 < n and modes[q + 1] == STICK:
+            q += 1
+        nb = q - p + 1
+        f_above = F[q + 1] if q + 1 < n else 0.0
+        if p == 0 and modes[0] == STICK:
+            A = af
+        else:
+            A = (F[p] - f_above) / (nb * m) - g
+        for i in range(p, q + 1):
+            acc[i] = A
+        for k in range(q, p, -1):
+            F[k] = (q - k + 1) * m * (A + g) + f_above
+        if p == 0 and modes[0] == STICK:
+            F[0] = nb * m * (A + g) + f_above
+        p = q + 1
+
+
+@njit
+def _accelerations(y, t, tap_start, in_tap, par, modes, c, F, acc):
+    yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
+    compressions(y, yf, par[P_R], c)
+    block_accelerations(c, modes, par[P_K], par[P_E], par[P_M], par[P_G], af, F, acc)
+
+
+@njit
+def _tangent_accelerations(dy, par, modes, dc, dF, dacc):
+    compressions(dy, 0.0, 0.0, dc)
+    block_accelerations(dc, modes, par[P_K], par[P_E], par[P_M], 0.0, 0.0, dF, dacc)
+
+
+# --------------------------------------------------------------------------- RK4
+@njit
+def _rk4_step(y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, tangent, W):
+    """One classical RK4 step of size ``hs`` with frozen modes into W[W_Y1..W_DV1]."""
+    n = y.size
+    c = W[W_C]
+    F = W[W_F]
+    yt = W[W_YT]
+    vt = W[W_VT]
+    dyt = W[W_DYT]
+    dvt = W[W_DVT]
+    for st in range(4):
+        if st == 0:
+            tt = t
+            for i in range(n):
+                yt[i] = y[i]
+                vt[i] = v[i]
+                if tangent:
+                    dyt[i] = dy[i]
+                    dvt[i] = dv[i]
+        else:
+            frac = 0.5 if st < 3 else 1.0
+            tt = t + frac * hs
+            for i in range(n):
+                yt[i] = y[i] + frac * hs * W[W_KY + st - 1, i]
+                vt[i] = v[i] + frac * hs * W[W_KV + st - 1, i]
+                if tangent:
+                    dyt[i] = dy[i] + frac * hs * W[W_KDY + st - 1, i]
+                    dvt[i] = dv[i] + frac * hs * W[W_KDV + st - 1, i]
+        _accelerations(yt, tt, tap_start, in_tap, par, modes, c, F, W[W_KV + st])
+        for i in range(n):
+            W[W_KY + st, i] = vt[i]
+        if tangent:
+            _tangent_accelerations(dyt, par, modes, W[W_DC], W[W_DF], W[W_KDV + st])
+            for i in range(n):
+                W[W_KDY + st, i] = dvt[i]
+    h6 = hs / 6.0
+    for i in range(n):
+        W[W_Y1, i] = y[i] + h6 * (
+            W[W_KY, i] + 2.0 * W[W_KY + 1, i] + 2.0 * W[W_KY + 2, i] + W[W_KY + 3, i]
+        )
+        W[W_V1, i] = v[i] + h6 * (
+            W[W_KV, i] + 2.0 * W[W_KV + 1, i] + 2.0 * W[W_KV + 2, i] + W[W_KV + 3, i]
+        )
+        if tangent:
+            W[W_DY1, i] = dy[i] + h6 * (
+                W[W_KDY, i] + 2.0 * W[W_KDY + 1, i] + 2.0 * W[W_KDY + 2, i] + W[W_KDY + 3, i]
+            )
+            W[W_DV1, i] = dv[i] + h6 * (
+                W[W_KDV, i] + 2.0 * W[W_KDV + 1, i] + 2.0 * W[W_KDV + 2, i] + W[W_KDV + 3, i]
+            )
+
+
+# --------------------------------------------------------------------------- events
+@njit
+def _event_values(y, v, t, tap_start, in_tap, par, modes, W, G):
+    """Event functions G (N, 2): positive while a contact's mode is consistent.
+
+    OPEN: (−c, ·); LOAD: (−w, ·); UNLOAD: (w, c); STICK: (F − K(1−e)c, K(1+e)c − F).
+    Unused entries are +1e300.
+    """
+    n = y.size
+    yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
+    c = W[W_C]
+    w = W[W_W]
+    F = W[W_F]
+    compressions(y, yf, par[P_R], c)
+    separation_rates(v, vf, w)
+    block_accelerations(c, modes, par[P_K], par[P_E], par[P_M], par[P_G], af, F, W[W_ACC])
+    kl = par[P_K] * (1.0 + par[P_E])
+    ku = par[P_K] * (1.0 - par[P_E])
+    for j in range(n):
+        md = modes[j]
+        G[j, 0] = _BIG
+        G[j, 1] = _BIG
+        if md == OPEN:
+            G[j, 0] = -c[j]
+        elif md == LOAD:
+            G[j, 0] = -w[j]
+        elif md == UNLOAD:
+            G[j, 0] = w[j]
+            G[j, 1] = c[j]
+        else:
+            G[j, 0] = F[j] - ku * c[j]
+            G[j, 1] = kl * c[j] - F[j]
+
+
+@njit
+def _event_scale(md, k, par, vscale):
+    """Scale of event function (mode md, index k), for tolerances."""
+    if md == OPEN or (md == UNLOAD and k == 1):
+        return par[P_R]
+    if md == STICK:
+        return par[P_K] * par[P_R]
+    return vscale
+
+
+@njit
+def _locate(j, k, fa0, fb0, y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, W, Gt):
+    """Time s in (0, hs] just past the zero of event function (j, k) (Illinois)."""
+    a_s = 0.0
+    b_s = hs
+    fa = fa0
+    fb = fb0
+    side = 0
+    tol = max(1e-13 * hs, 4.0 * 2.220446049250313e-16 * abs(t))
+    for _ in range(80):
+        if b_s - a_s <= tol:
+            break
+        s = (a_s * fb - b_s * fa) / (fb - fa)
+        if not (a_s < s < b_s):
+            s = 0.5 * (a_s + b_s)
+        _rk4_step(y, v, dy, dv, t, s, tap_start, in_tap, par, modes, False, W)
+        _event_values(W[W_Y1], W[W_V1], t + s, tap_start, in_tap, par, modes, W, Gt)
+        fs = Gt[j, k]
+        if fs <= 0.0:
+            b_s = s
+            fb = fs
+            if side == -1:
+                fa *= 0.5
+            side = -1
+        else:
+            a_s = s
+            fa = fs
+            if side == 1:
+                fb *= 0.5
+            side = 1
+    return b_s
+
+
+@njit
+def _mode_from_state(cj, wj):
+    """Mode implied by compression and separation rate (w = 0 → STICK candidate)."""
+    if cj <= 0.0:
+        return OPEN
+    if wj < 0.0:
+        return LOAD
+    if wj > 0.0:
+        return UNLOAD
+    return STICK
+
+
+@njit
+def _resolve(y, v, t, tap_start, in_tap, par, modes, active, justrel, W, stats):
+    """Active-set resolution of stuck contacts at one instant.
+
+    Contacts flagged ``active`` (w has just reached 0 at c > 0) are tried in STICK; the
+    stuck contact whose required force leaves its band by the most is released (LOAD if
+    the band is too weak, UNLOAD if too strong), and released contacts whose relative
+    acceleration points back across w = 0 are stuck again, until consistent.
+    """
+    n = y.size
+    yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
+    c = W[W_C]
+    F = W[W_F]
+    acc = W[W_ACC]
+    K = par[P_K]
+    e = par[P_E]
+    compressions(y, yf, par[P_R], c)
+    for j in range(n):
+        justrel[j] = False
+        if active[j] and c[j] > 0.0 and modes[j] != STICK:
+            modes[j] = STICK
+            stats[S_STICKS] += 1
+    athr = 1e-12 * K * par[P_R] / par[P_M]
+    for _ in range(4 * n + 8):
+        block_accelerations(c, modes, K, e, par[P_M], par[P_G], af, F, acc)
+        best = -1
+        bestv = -1.0
+        for j in range(n):
+            if modes[j] == STICK:
+                sc = K * max(c[j], 1e-300)
+                viol = max(F[j] - K * (1.0 + e) * c[j], K * (1.0 - e) * c[j] - F[j]) / sc
+                if e == 0.0:
+                    viol += 1.0  # no band without hysteresis: never stick
+                if viol >= 0.0 and viol > bestv:  # marginal (at an edge) counts as out
+                    bestv = viol
+                    best = j
+        if best >= 0:
+            # the nearer edge decides (a marginal force sits on an edge up to round-off)
+            modes[best] = LOAD if F[best] > K * c[best] else UNLOAD
+            if c[best] <= 0.0:
+                modes[best] = OPEN
+            justrel[best] = True
+            stats[S_RELEASES] += 1
+            continue
+        bad = -1
+        for j in range(n):
+            if e > 0.0 and justrel[j] and (modes[j] == LOAD or modes[j] == UNLOAD):
+                arel = acc[j] - (acc[j - 1] if j > 0 else af)
+                if (modes[j] == LOAD and arel > athr) or (modes[j] == UNLOAD and arel < -athr):
+                    bad = j
+                    break
+        if bad >= 0:
+            modes[bad] = STICK
+            justrel[bad] = False
+            stats[S_STICKS] += 1
+            continue
+        return
+    stats[S_CAP] += 1
+
+
+@njit
+def _snap_blocks(v, dv, t, tap_start, in_tap, par, modes, tangent):
+    """Give every stuck block one velocity (momentum mean; the floor's if glued to it)."""
+    n = v.size
+    yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
+    p = 0
+    while p < n:
+        q = p
+        while q + 1 < n and modes[q + 1] == STICK:
+            q += 1
+        floor_att = p == 0 and modes[0] == STICK
+        if q > p or floor_att:
+            if floor_att:
+                vb = vf
+                dvb = 0.0
+            else:
+                vb = 0.0
+                dvb = 0.0
+                for i in range(p, q + 1):
+                    vb += v[i]
+                    dvb += dv[i]
+                vb /= q - p + 1
+                dvb /= q - p + 1
+            for i in range(p, q + 1):
+                v[i] = vb
+                if tangent:
+                    dv[i] = dvb
+        p = q + 1
+
+
+@njit
+def _check_state(y, t, par, yf, step):
+    """Status and particle index: overlap past a centre (pass-through) or non-finite."""
+    n = y.size
+    for i in range(n):
+        if not math.isfinite(y[i]):
+            return STATUS_NONFINITE, i
+    if y[0] - yf <= 0.0:
+        return STATUS_OVERLAP, 0
+    for i in range(1, n):
+        if y[i] - y[i - 1] <= 0.0:
+            return STATUS_OVERLAP, i
+    return STATUS_OK, -1
+
+
+@njit
+def _process_event(
+    y,
+    v,
+    dy,
+    dv,
+    t,
+    tap_start,
+    in_tap,
+    par,
+    modes,
+    G0,
+    Gt,
+    jstar,
+    kstar,
+    tangent,
+    saltation,
+    active,
+    justrel,
+    W,
+    stats,
+):
+    """Mode changes at a located event; saltation of the tangent for w-type switches."""
+    n = y.size
+    yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
+    # accelerations just before the switch (old modes) and the switching rate of jstar
+    _accelerations(y, t, tap_start, in_tap, par, modes, W[W_C], W[W_F], W[W_AMINUS])
+    am = W[W_AMINUS]
+    md_star = modes[jstar]
+    w_type = (md_star == LOAD) or (md_star == UNLOAD and kstar == 0)
+    wdot = am[jstar] - (am[jstar - 1] if jstar > 0 else af)
+    dw = 0.0
+    if tangent:
+        dw = dv[jstar] - (dv[jstar - 1] if jstar > 0 else 0.0)
+    _event_values(y, v, t, tap_start, in_tap, par, modes, W, Gt)
+    w = W[W_W]
+    for j in range(n):
+        active[j] = False
+    old_star = modes[jstar]
+    for j in range(n):
+        for k in range(2):
+            hit = (j == jstar and k == kstar) or Gt[j, k] <= 0.0
+            if not hit:
+                continue
+            md = modes[j]
+            if md == OPEN:
+                if w[j] < 0.0:
+                    modes[j] = LOAD
+                    stats[S_OPENCLOSE] += 1
+            elif md == UNLOAD and k == 1:
+                modes[j] = OPEN
+                stats[S_OPENCLOSE] += 1
+            elif md == LOAD or md == UNLOAD:
+                active[j] = True
+            # STICK band events: _resolve releases them.
+    _resolve(y, v, t, tap_start, in_tap, par, modes, active, justrel, W, stats)
+    _snap_blocks(v, dv, t, tap_start, in_tap, par, modes, tangent)
+    if w_type and modes[jstar] != old_star:
+        stats[S_CROSSINGS] += 1
+        if tangent and saltation and wdot != 0.0:
+            _accelerations(y, t, tap_start, in_tap, par, modes, W[W_C], W[W_F], W[W_ACC])
+            fac = dw / wdot
+            if abs(fac) * par[P_K] / par[P_M] > 1e8 * par[P_R]:
+                stats[S_SALT_BIG] += 1
+            for i in range(n):
+                dv[i] += (W[W_ACC, i] - am[i]) * fac
+            _snap_blocks(v, dv, t, tap_start, in_tap, par, modes, tangent)
+
+
+@njit
+def _time_event(y, v, dv, t, tap_start, in_tap, par, modes, active, justrel, W, stats, tangent):
+    """Floor velocity jumped (start or end of a tap): re-derive the floor contact's mode."""
+    n = y.size
+    yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
+    c0 = par[P_R] - (y[0] - yf)
+    w0 = v[0] - vf
+    for j in range(n):
+        active[j] = False
+    if modes[0] != OPEN or c0 > 0.0:
+        md = _mode_from_state(c0, w0)
+        if md == STICK:
+            active[0] = True
+        else:
+            modes[0] = md
+    _resolve(y, v, t, tap_start, in_tap, par, modes, active, justrel, W, stats)
+    _snap_blocks(v, dv, t, tap_start, in_tap, par, modes, tangent)
+
+
+@njit
+def _at_rest(v, modes):
+    """All contacts (floor included) stuck and every velocity exactly zero."""
+    for i in range(v.size):
+        if modes[i] != STICK or v[i] != 0.0:
+            return False
+    return True
+
+
+@njit
+def _advance(
+    y,
+    v,
+    dy,
+    dv,
+    modes,
+    t,
+    t_end,
+    h,
+    tap_start,
+    in_tap,
+    par,
+    tangent,
+    saltation,
+    W,
+    G0,
+    G1,
+    Gt,
+    active,
+    justrel,
+    stats,
+    vscale,
+    step0,
+):
+    """Integrate from t to t_end (no drive switch inside) with located mode switches.
+
+    Returns (t, status, particle, steps).
+    """
+    n = y.size
+    steps = step0
+    n_tiny = 0
+    # an immediate event that changed no mode is not retried before the next full step
+    muted = np.zeros((n, 2), dtype=np.bool_)
+    while t_end - t > 1e-12 * h:
+        if not in_tap and _at_rest(v, modes):
+            # Every contact stuck and the floor still: the state is exactly static (all
+            # accelerations and velocities zero, required forces constant), so no event
+            # can occur before the drive changes. Jump to the stop.
+            t = t_end
+            break
+        hs = min(h, t_end - t)
+        if t_end - (t + hs) < 1e-6 * h:
+            hs = t_end - t
+        _event_values(y, v, t, tap_start, in_tap, par, modes, W, G0)
+        # late detection: a mode inconsistent at the start of a step (missed re-crossing)
+        late = False
+        for j in range(n):
+            md = modes[j]
+            for k in range(2):
+                if G0[j, k] < -1e-7 * _event_scale(md, k, par, vscale):
+                    late = True
+        if late:
+            stats[S_SAFETY] += 1
+            c = W[W_C]
+            w = W[W_W]
+            for j in range(n):
+                active[j] = False
+                md = modes[j]
+                bad = False
+                for k in range(2):
+                    if G0[j, k] < -1e-7 * _event_scale(md, k, par, vscale):
+                        bad = True
+                if bad and md != STICK:
+                    nm = _mode_from_state(c[j], w[j])
+                    if nm == STICK or (nm != OPEN and abs(w[j]) < 1e-9 * vscale):
+                        active[j] = True
+                    else:
+                        modes[j] = nm
+            _resolve(y, v, t, tap_start, in_tap, par, modes, active, justrel, W, stats)
+            _snap_blocks(v, dv, t, tap_start, in_tap, par, modes, tangent)
+            _event_values(y, v, t, tap_start, in_tap, par, modes, W, G0)
+        _rk4_step(y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, tangent, W)
+        _event_values(W[W_Y1], W[W_V1], t + hs, tap_start, in_tap, par, modes, W, G1)
+        s_best = 2.0 * hs
+        jb = -1
+        kb = -1
+        for j in range(n):
+            for k in range(2):
+                g0 = G0[j, k]
+                g1 = G1[j, k]
+                if g0 >= _BIG or g1 > 0.0 or g1 >= g0 or muted[j, k]:
+                    continue
+                if g0 > 0.0:
+                    s = _locate(
+                        j, k, g0, g1, y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, W, Gt
+                    )
+                elif g0 > -1e-9 * _event_scale(modes[j], k, par, vscale) and (
+                    g1 < -1e-12 * _event_scale(modes[j], k, par, vscale)
+                ):
+                    s = 0.0  # crossed at the end of the previous step, within round-off
+                else:
+                    continue  # a late detection, handled at the start of the next step
+                if s < s_best:
+                    s_best = s
+                    jb = j
+                    kb = k
+        if jb < 0:
+            for i in range(n):
+                y[i] = W[W_Y1, i]
+                v[i] = W[W_V1, i]
+                if tangent:
+                    dy[i] = W[W_DY1, i]
+                    dv[i] = W[W_DV1, i]
+            t += hs
+            steps += 1
+            stats[S_STEPS] += 1
+            n_tiny = 0
+            muted[:, :] = False
+        else:
+            _rk4_step(y, v, dy, dv, t, s_best, tap_start, in_tap, par, modes, tangent, W)
+            for i in range(n):
+                y[i] = W[W_Y1, i]
+                v[i] = W[W_V1, i]
+                if tangent:
+                    dy[i] = W[W_DY1, i]
+                    dv[i] = W[W_DV1, i]
+            t += s_best
+            stats[S_EVENTS] += 1
+            for i in range(n):
+                W[W_YS, i] = modes[i]
+            _process_event(
+                y,
+                v,
+                dy,
+                dv,
+                t,
+                tap_start,
+                in_tap,
+                par,
+                modes,
+                G0,
+                Gt,
+                jb,
+                kb,
+                tangent,
+                saltation,
+                active,
+                justrel,
+                W,
+                stats,
+            )
+            if s_best == 0.0:
+                same = True
+                for i in range(n):
+                    if W[W_YS, i] != modes[i]:
+                        same = False
+                if same:
+                    muted[jb, kb] = True
+            if s_best < 1e-9 * h:
+                n_tiny += 1
+                if n_tiny > 200:
+                    return t, STATUS_ZENO, jb, steps
+            else:
+                n_tiny = 0
+        yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
+        status, who = _check_state(y, t, par, yf, steps)
+        if status != STATUS_OK:
+            return t, status, who, steps
+    return t, STATUS_OK, -1, steps
+
+
+# --------------------------------------------------------------------------- smooth model
+@njit
+def _smooth_forces(y, v, t, tap_start, in_tap, par, F, acc):
+    """Eq. (30) forces F_j = K(1 − e tanh(α_σ w))c(1 + tanh(α_χ c))/2 and accelerations."""
+    n = y.size
+    yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
+    K = par[P_K]
+    e = par[P_E]
+    r = par[P_R]
+    for j in range(n):
+        if j == 0:
+            c = r - (y[0] - yf)
+            w = v[0] - vf
+        else:
+            c = 2.0 * r - (y[j] - y[j - 1])
+            w = v[j] - v[j - 1]
+        F[j] = (
+            K
+            * (1.0 - e * math.tanh(par[P_ASIG] * w))
+            * c
+            * 0.5
+            * (1.0 + math.tanh(par[P_ACHI] * c))
+        )
+    for i in range(n):
+        above = F[i + 1] if i + 1 < n else 0.0
+        acc[i] = (F[i] - above) / par[P_M] - par[P_G]
+
+
+@njit
+def _smooth_tangent(y, v, dy, dv, t, tap_start, in_tap, par, dF, dacc):
+    """Tangent accelerations of the smooth model (analytic Jacobian of Eq. 30 forces)."""
+    n = y.size
+    yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
+    K = par[P_K]
+    e = par[P_E]
+    r = par[P_R]
+    asg = par[P_ASIG]
+    ach = par[P_ACHI]
+    for j in range(n):
+        if j == 0:
+            c = r - (y[0] - yf)
+            w = v[0] - vf
+            dcj = -dy[0]
+            dwj = dv[0]
+        else:
+            c = 2.0 * r - (y[j] - y[j - 1])
+            w = v[j] - v[j - 1]
+            dcj = -(dy[j] - dy[j - 1])
+            dwj = dv[j] - dv[j - 1]
+        ts = math.tanh(asg * w)
+        tc = math.tanh(ach * c)
+        chi = 0.5 * (1.0 + tc)
+        dchi = 0.5 * ach * (1.0 - tc * tc)
+        dF_dc = K * (1.0 - e * ts) * (chi + c * dchi)
+        dF_dw = -K * e * asg * (1.0 - ts * ts) * c * chi
+        dF[j] = dF_dc * dcj + dF_dw * dwj
+    for i in range(n):
+        above = dF[i + 1] if i + 1 < n else 0.0
+        dacc[i] = (dF[i] - above) / par[P_M]
+
+
+@njit
+def _advance_smooth(y, v, dy, dv, t, t_end, h, tap_start, in_tap, par, tangent, W, stats, step0):
+    """Fixed-step RK4 of the smooth model (and its variational equations) to t_end."""
+    n = y.size
+    steps = step0
+    F = W[W_F]
+    yt = W[W_YT]
+    vt = W[W_VT]
+    dyt = W[W_DYT]
+    dvt = W[W_DVT]
+    while t_end - t > 1e-12 * h:
+        hs = min(h, t_end - t)
+        if t_end - (t + hs) < 1e-6 * h:
+            hs = t_end - t
+        for st in range(4):
+            if st == 0:
+                tt = t
+                for i in range(n):
+                    yt[i] = y[i]
+                    vt[i] = v[i]
+                    dyt[i] = dy[i]
+                    dvt[i] = dv[i]
+            else:
+                frac = 0.5 if st < 3 else 1.0
+                tt = t + frac * hs
+                for i in range(n):
+                    yt[i] = y[i] + frac * hs * W[W_KY + st - 1, i]
+                    vt[i] = v[i] + frac * hs * W[W_KV + st - 1, i]
+                    dyt[i] = dy[i] + frac * hs * W[W_KDY + st - 1, i]
+                    dvt[i] = dv[i] + frac * hs * W[W_KDV + st - 1, i]
+            _smooth_forces(yt, vt, tt, tap_start, in_tap, par, F, W[W_KV + st])
+            for i in range(n):
+                W[W_KY + st, i] = vt[i]
+            if tangent:
+                _smooth_tangent(
+                    yt, vt, dyt, dvt, tt, tap_start, in_tap, par, W[W_DF], W[W_KDV + st]
+                )
+                for i in range(n):
+                    W[W_KDY + st, i] = dvt[i]
+        h6 = hs / 6.0
+        for i in range(n):
+            y[i] += h6 * (W[W_KY, i] + 2.0 * W[W_KY + 1, i] + 2.0 * W[W_KY + 2, i] + W[W_KY + 3, i])
+            v[i] += h6 * (W[W_KV, i] + 2.0 * W[W_KV + 1, i] + 2.0 * W[W_KV + 2, i] + W[W_KV + 3, i])
+            if tangent:
+                dy[i] += h6 * (
+                    W[W_KDY, i] + 2.0 * W[W_KDY + 1, i] + 2.0 * W[W_KDY + 2, i] + W[W_KDY + 3, i]
+                )
+                dv[i] += h6 * (
+                    W[W_KDV, i] + 2.0 * W[W_KDV + 1, i] + 2.0 * W[W_KDV + 2, i] + W[W_KDV + 3, i]
+                )
+        t += hs
+        steps += 1
+        stats[S_STEPS] += 1
+        yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
+        status, who = _check_state(y, t, par, yf, steps)
+        if status != STATUS_OK:
+            return t, status, who, steps
+    return t, STATUS_OK, -1, steps
+
+
+# --------------------------------------------------------------------------- driver
+@njit
+def _tangent_norm(dy, dv, sy, sv):
+    s = 0.0
+    for i in range(dy.size):
+        s += (dy[i] / sy) ** 2 + (dv[i] / sv) ** 2
+    return math.sqrt(s)
+
+
+@njit
+def run_periods(
+    y,
+    v,
+    dy,
+    dv,
+    modes,
+    par,
+    h,
+    k0,
+    n_periods,
+    smooth,
+    tangent,
+    saltation,
+    sy,
+    sv,
+    vscale,
+    rec_t0,
+    rec_dt,
+    rec_y,
+    rec_v,
+    samp_fracs,
+    samp_y,
+    log_growth,
+    stats,
+):
+    """Evolve the column over taps k0 .. k0 + n_periods − 1 (t from k0 T to (k0+n) T).
+
+    State arrays are updated in place. Records (if ``rec_y`` has rows) at times
+    rec_t0 + i rec_dt; samples of y at (k + f) T for f in ``samp_fracs`` into
+    ``samp_y[k − k0, f]``; with ``tangent``, the tangent vector (dy, dv) is renormalized
+    (norm sqrt(Σ (dy/sy)² + (dv/sv)²)) at the end of every period and
+    ``log_growth[k − k0]`` gets the log of its growth over that period.
+
+    Returns
+    -------
+    status, particle, time, n_records
+    """
+    n = y.size
+    W = np.zeros((N_WORK, n))
+    G0 = np.zeros((n, 2))
+    G1 = np.zeros((n, 2))
+    Gt = np.zeros((n, 2))
+    active = np.zeros(n, dtype=np.bool_)
+    justrel = np.zeros(n, dtype=np.bool_)
+    T = par[P_T]
+    tau = par[P_TAU] if par[P_A] > 0.0 else 0.0
+    n_rec_max = rec_y.shape[0]
+    i_rec = 0
+    t = k0 * T
+    # skip records before the start
+    while i_rec < n_rec_max and rec_t0 + i_rec * rec_dt < t - 1e-9 * h:
+        i_rec += 1
+    steps = 0
+    n_samp = samp_fracs.size
+    log_extra = 0.0
+    if not smooth:
+        for j in range(n):
+            active[j] = False
+        # make the initial modes consistent (equilibrium start: all stuck)
+        _resolve(y, v, t, t, False, par, modes, active, justrel, W, stats)
+        _snap_blocks(v, dv, t, t, False, par, modes, tangent)
+    for kk in range(n_periods):
+        k = k0 + kk
+        t_start = k * T
+        log_extra = 0.0
+        for seg in range(2):
+            if seg == 0:
+                if tau <= 0.0:
+                    continue
+                seg_a = t_start
+                seg_b = t_start + tau
+                in_tap = True
+            else:
+                seg_a = t_start + tau
+                seg_b = (k + 1) * T
+                in_tap = False
+            t = seg_a
+            if not smooth and tau > 0.0:
+                _time_event(
+                    y, v, dv, t, t_start, in_tap, par, modes, active, justrel, W, stats, tangent
+                )
+            while True:
+                # record / sample everything due at the current time
+                while i_rec < n_rec_max and rec_t0 + i_rec * rec_dt <= t + 1e-9 * h:
+                    for i in range(n):
+                        rec_y[i_rec, i] = y[i]
+                        rec_v[i_rec, i] = v[i]
+                    i_rec += 1
+                stop = seg_b
+                if i_rec < n_rec_max:
+                    tr = rec_t0 + i_rec * rec_dt
+                    if tr < stop:
+                        stop = tr
+                for f in range(n_samp):
+                    ts = (k + samp_fracs[f]) * T
+                    if t + 1e-9 * h < ts < stop:
+                        stop = ts
+                if stop - t <= 1e-9 * h:
+                    break
+                if smooth:
+                    t, status, who, steps = _advance_smooth(
+                        y, v, dy, dv, t, stop, h, t_start, in_tap, par, tangent, W, stats, steps
+                    )
+                else:
+                    t, status, who, steps = _advance(
+                        y,
+                        v,
+                        dy,
+                        dv,
+                        modes,
+                        t,
+                        stop,
+                        h,
+                        t_start,
+                        in_tap,
+                        par,
+                        tangent,
+                        saltation,
+                        W,
+                        G0,
+                        G1,
+                        Gt,
+                        active,
+                        justrel,
+                        stats,
+                        vscale,
+                        steps,
+                    )
+                if status != STATUS_OK:
+                    return status, who, t, i_rec
+                for f in range(n_samp):
+                    ts = (k + samp_fracs[f]) * T
+                    if abs(t - ts) <= 1e-9 * h:
+                        for i in range(n):
+                            samp_y[kk, f, i] = y[i]
+                if tangent:
+                    nrm = _tangent_norm(dy, dv, sy, sv)
+                    if nrm > 1e100 or nrm < 1e-100:
+                        log_extra += math.log(nrm)
+                        for i in range(n):
+                            dy[i] /= nrm
+                            dv[i] /= nrm
+        if tangent:
+            nrm = _tangent_norm(dy, dv, sy, sv)
+            log_growth[kk] = math.log(nrm) + log_extra
+            for i in range(n):
+                dy[i] /= nrm
+                dv[i] /= nrm
+        t = (k + 1) * T
+    # record at the final time if due
+    while i_rec < n_rec_max and rec_t0 + i_rec * rec_dt <= t + 1e-9 * h:
+        for i in range(n):
+            rec_y[i_rec, i] = y[i]
+            rec_v[i_rec, i] = v[i]
+        i_rec += 1
+    return STATUS_OK, -1, t, i_rec
+
+
+# =========================================================================== Python API
+class ColumnState:
+    """Mutable state of one column: positions, velocities, contact modes, tangent vector.
+
+    Attributes
+    ----------
+    y, v : (N,) float64 [length], [length/time]
+    modes : (N,) int8 contact modes (OPEN, LOAD, UNLOAD, STICK)
+    dy, dv : (N,) float64 tangent vector (dimensions of y and v)
+    period : int, index of the next tap to run (the state is at time ``period * T``)
+    """
+
+    def __init__(self, y, v=None, modes=None, dy=None, dv=None, period=0):
+        self.y = np.array(y, dtype=np.float64)
+        n = self.y.size
+        self.v = np.zeros(n) if v is None else np.array(v, dtype=np.float64)
+        self.modes = (
+            np.full(n, STICK, dtype=np.int8) if modes is None else np.array(modes, dtype=np.int8)
+        )
+        self.dy = np.zeros(n) if dy is None else np.array(dy, dtype=np.float64)
+        self.dv = np.zeros(n) if dv is None else np.array(dv, dtype=np.float64)
+        self.period = int(period)
+
+    def copy(self) -> ColumnState:
+        return ColumnState(self.y, self.v, self.modes, self.dy, self.dv, self.period)
+
+
+def default_step(p, factor: float = 0.1) -> float:
+    """Default RK4 step h = factor / ω_max, ω_max = 2 sqrt(K(1+e)/m) [time].
+
+    For the smooth model the step also resolves the viscous rate e K c α_σ / m of σ_α near
+    w = 0 (c ≤ r), so h ≤ factor·m/(e K r α_σ).
+    """
+    h = factor / p.max_frequency
+    if p.smooth and p.e > 0:
+        h = min(h, factor * p.m / (p.e * p.K * p.r * p.alpha_sigma))
+    return h
+
+
+def tangent_scales(p) -> tuple[float, float]:
+    """Scales (s_y, s_v) of the tangent norm sqrt(Σ (δy/s_y)² + (δv/s_v)²): r and ω_c r."""
+    return p.r, p.contact_frequency * p.r
+
+
+def smooth_equilibrium(p) -> np.ndarray:
+    """Rest positions of the smooth model (Eq. 30): K c χ_α(c) = weight above, per contact.
+
+    Returns (N,) float64 [length]; reduces to :func:`params.equilibrium_positions` as
+    α_χ → ∞.
+    """
+    from .params import equilibrium_positions
+
+    y = equilibrium_positions(p)  # also checks 𝔐 < r/N
+    weights = p.m * p.g * np.arange(p.N, 0, -1, dtype=np.float64)  # contact j carries N−j
+    c = weights / p.K
+    for _ in range(100):
+        tc = np.tanh(p.alpha_chi * c)
+        chi = 0.5 * (1 + tc)
+        f = p.K * c * chi - weights
+        df = p.K * (chi + c * 0.5 * p.alpha_chi * (1 - tc * tc))
+        dc = f / df
+        c -= dc
+        if np.max(np.abs(dc)) < 1e-15 * p.r:
+            break
+    y = np.empty(p.N)
+    y[0] = p.r - c[0]
+    for j in range(1, p.N):
+        y[j] = y[j - 1] + 2 * p.r - c[j]
+    return y
+
+
+def initial_state(p, perturbation=None) -> ColumnState:
+    """The equilibrium start at rest (SPEC §2), all contacts stuck; optional δy added.
+
+    Parameters
+    ----------
+    perturbation : (N,) float64 [length], optional
+        Added to the rest positions (the column then starts slightly off equilibrium; every
+        contact stays stuck while its force remains inside the hysteresis band).
+    """
+    from .params import equilibrium_positions
+
+    y = smooth_equilibrium(p) if p.smooth else equilibrium_positions(p)
+    if perturbation is not None:
+        y = y + np.asarray(perturbation, dtype=np.float64)
+    return ColumnState(y)
+
+
+def mechanical_energy(p, y, v, y_floor=0.0) -> np.ndarray:
+    """Kinetic + gravitational + elastic energy (elastic with stiffness K, e = 0 only).
+
+    Parameters
+    ----------
+    y, v : (..., N) [length], [length/time]
+
+    Returns
+    -------
+    E : (...) [energy]
+    """
+    y = np.asarray(y)
+    v = np.asarray(v)
+    c = np.empty_like(y)
+    c[..., 0] = p.r - (y[..., 0] - y_floor)
+    c[..., 1:] = 2 * p.r - np.diff(y, axis=-1)
+    elastic = 0.5 * p.K * np.sum(np.where(c > 0, c * c, 0.0), axis=-1)
+    return 0.5 * p.m * np.sum(v * v, axis=-1) + p.m * p.g * np.sum(y, axis=-1) + elastic
+
+
+def _raise_status(status, who, t, p, **context):
+    from ..errors import SimulationError
+
+    if status == STATUS_OVERLAP:
+        what = "floor" if who == 0 else f"particle {who - 1}"
+        raise SimulationError(
+            f"column: particle {who} passed through the {what}",
+            particle=int(who),
+            time=float(t),
+            **context,
+        )
+    if status == STATUS_NONFINITE:
+        raise SimulationError(
+            "column: non-finite position", particle=int(who), time=float(t), **context
+        )
+    if status == STATUS_ZENO:
+        raise SimulationError(
+            "column: more than 200 mode switches without the clock advancing (Zeno)",
+            particle=int(who),
+            time=float(t),
+            **context,
+        )
+
+
+def simulate(
+    p,
+    state: ColumnState,
+    n_periods: int,
+    *,
+    h: float | None = None,
+    record_dt: float | None = None,
+    sample_fracs=(0.99,),
+    tangent: bool = False,
+    saltation: bool = True,
+    **context,
+) -> dict:
+    """Run ``n_periods`` taps from ``state`` (updated in place).
+
+    Parameters
+    ----------
+    p : ColumnParams
+    state : ColumnState at time ``state.period * T``
+    n_periods : int
+    h : float [time], RK4 step (default :func:`default_step`)
+    record_dt : float [time], optional; record y, v every ``record_dt``
+    sample_fracs : sequence of float in (0, 1]; sample y at (k + f)T
+    tangent : bool; evolve the tangent vector (normalized at the end of every period)
+    saltation : bool; apply saltation corrections at σ switches
+
+    Returns
+    -------
+    dict with ``t`` (n_rec,), ``y``/``v`` (n_rec, N), ``samples`` (n_periods, n_frac, N)
+    [length], ``log_growth`` (n_periods,) (log of the tangent growth per period), ``stats``
+    (dict of counters).
+    """
+    h = default_step(p) if h is None else float(h)
+    k0 = state.period
+    if record_dt:
+        n_rec = int(np.floor(n_periods * p.T / record_dt + 1e-9)) + 1
+        rec_t0 = k0 * p.T
+    else:
+        n_rec, rec_t0, record_dt = 0, 0.0, 1.0
+    rec_y = np.zeros((n_rec, p.N))
+    rec_v = np.zeros((n_rec, p.N))
+    fr = np.asarray(sample_fracs, dtype=np.float64)
+    samp = np.full((n_periods, fr.size, p.N), np.nan)
+    growth = np.full(n_periods, np.nan)
+    stats = np.zeros(N_STATS, dtype=np.int64)
+    sy, sv = tangent_scales(p)
+    if tangent:
+        nrm = np.sqrt(np.sum((state.dy / sy) ** 2 + (state.dv / sv) ** 2))
+        if not nrm > 0:
+            raise ValueError("tangent=True needs a nonzero tangent vector in the state")
+        state.dy /= nrm
+        state.dv /= nrm
+    status, who, t, n_done = run_periods(
+        state.y,
+        state.v,
+        state.dy,
+        state.dv,
+        state.modes,
+        p.as_array(),
+        h,
+        k0,
+        int(n_periods),
+        bool(p.smooth),
+        bool(tangent),
+        bool(saltation),
+        sy,
+        sv,
+        p.velocity_scale,
+        rec_t0,
+        float(record_dt),
+        rec_y,
+        rec_v,
+        fr,
+        samp,
+        growth,
+        stats,
+    )
+    if status != STATUS_OK:
+        _raise_status(status, who, t, p, **context)
+    state.period = k0 + int(n_periods)
+    return {
+        "t": rec_t0 + record_dt * np.arange(n_done),
+        "y": rec_y[:n_done],
+        "v": rec_v[:n_done],
+        "samples": samp,
+        "log_growth": growth,
+        "stats": dict(zip(STAT_NAMES, stats.tolist(), strict=True)),
+    }
