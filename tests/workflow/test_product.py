@@ -1,0 +1,300 @@
+"""Product behaviour of the workflow on a scratch copy at the quick scale.
+
+One module-scoped run of the whole quick scale feeds every test here: partial reruns
+plan exactly the stages a config edit touches, figures regenerate from cached data
+alone, growing an ensemble reuses every batch, a SIGKILLed job leaves nothing under its
+final name and its rerun is byte-identical, a blow-up names study, point, replica, seed
+and step while ``--keep-going`` finishes the rest, a second workflow on the same
+directory is refused by Snakemake's lock, and ``--report`` gathers every figure.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import signal
+import subprocess
+import time
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+import xarray as xr
+import yaml
+
+from .conftest import SNAKEMAKE, copy_workflow, run_snakemake
+
+pytestmark = pytest.mark.workflow
+
+
+@dataclass(frozen=True)
+class Knobs:
+    """Where each study keeps the keys the product tests edit."""
+
+    fit_key: tuple  # an analysis setting: only fits and figures may rerun
+    fit_value: object
+    timestep_key: tuple  # a physics setting: simulations and everything downstream
+    replicas_key: tuple  # growing the ensemble appends batches
+    sim_rules: frozenset
+    fit_rules: frozenset  # rules that may rerun after a fit edit
+    figure_rule: str
+    batch_glob: str  # run files, relative to results/quick/<study>/
+
+
+KNOBS = {
+    "drum": Knobs(
+        fit_key=("fits", "moving_average_s"),
+        fit_value=0.2,
+        timestep_key=("physics", "dt"),
+        replicas_key=("ensemble", "n_replicas"),
+        sim_rules=frozenset({"drum_init", "drum_runs"}),
+        fit_rules=frozenset({"drum_fits", "drum_figures"}),
+        figure_rule="drum_figures",
+        batch_glob="runs/*/batch_*.nc",
+    ),
+}
+
+
+def _get(cfg, key):
+    for k in key:
+        cfg = cfg[k]
+    return cfg
+
+
+def _set(cfg, key, value):
+    for k in key[:-1]:
+        cfg = cfg[k]
+    cfg[key[-1]] = value
+
+
+def planned_jobs(workdir: Path, configfile: str, *extra) -> dict[str, int]:
+    """Rule -> job count of what ``snakemake -n`` would run."""
+    proc = run_snakemake("-n", "--cores", "2", "--configfile", configfile, *extra, cwd=workdir)
+    text = proc.stdout
+    if "Nothing to be done" in text:
+        return {}
+    table = text.split("Job stats:", 1)[1]
+    jobs = {}
+    for line in table.splitlines()[3:]:
+        parts = line.split()
+        if len(parts) != 2 or not parts[1].isdigit():
+            break
+        if parts[0] != "total":
+            jobs[parts[0]] = int(parts[1])
+    return jobs
+
+
+def write_config(workdir: Path, cfg: dict, name: str) -> str:
+    path = workdir / "config" / name
+    path.write_text(yaml.safe_dump(cfg, sort_keys=False))
+    return f"config/{name}"
+
+
+def data_bytes(path: Path) -> dict[str, bytes]:
+    """The raw bytes of every data variable (attributes like creation time excluded)."""
+    with xr.open_dataset(path) as ds:
+        return {name: ds[name].values.tobytes() for name in ds.data_vars}
+
+
+@pytest.fixture(scope="module")
+def quick(tmp_path_factory):
+    """A scratch copy of the workflow with the quick scale run to completion."""
+    workdir = copy_workflow(tmp_path_factory.mktemp("product"))
+    base = yaml.safe_load((workdir / "config/quick.yaml").read_text())
+    base["studies"] = [s for s in base["studies"] if s in KNOBS]
+    if not base["studies"]:
+        pytest.skip("no study with product knobs has landed")
+    configfile = write_config(workdir, base, "scratch.yaml")
+    run_snakemake("--cores", "2", "--configfile", configfile, cwd=workdir, timeout=1500)
+    return workdir, base
+
+
+def studies(base):
+    return [s for s in base["studies"] if s in KNOBS]
+
+
+def test_quick_scale_produced_every_target(quick):
+    workdir, base = quick
+    assert planned_jobs(workdir, "config/scratch.yaml") == {}
+    for study in studies(base):
+        root = workdir / "results" / "quick" / study
+        assert (root / "fits" / "summary.csv").exists()
+        assert list((root / "figures").glob("fig*.png"))
+        assert list((root / "figures").glob("fig*.pdf"))
+
+
+def test_fit_edit_plans_only_fits_and_figures(quick):
+    workdir, base = quick
+    for study in studies(base):
+        knobs = KNOBS[study]
+        cfg = copy.deepcopy(base)
+        _set(cfg[study], knobs.fit_key, knobs.fit_value)
+        assert _get(cfg[study], knobs.fit_key) != _get(base[study], knobs.fit_key)
+        jobs = planned_jobs(workdir, write_config(workdir, cfg, "fit_edit.yaml"))
+        planned = set(jobs) - {"all"}
+        assert planned, f"{study}: editing {knobs.fit_key} planned nothing"
+        assert planned <= knobs.fit_rules, f"{study}: fit edit planned {sorted(planned)}"
+
+
+def test_timestep_edit_plans_simulations_and_downstream(quick):
+    workdir, base = quick
+    for study in studies(base):
+        knobs = KNOBS[study]
+        cfg = copy.deepcopy(base)
+        _set(cfg[study], knobs.timestep_key, 0.9 * _get(base[study], knobs.timestep_key))
+        jobs = planned_jobs(workdir, write_config(workdir, cfg, "dt_edit.yaml"))
+        assert knobs.sim_rules <= set(jobs), f"{study}: dt edit planned {sorted(jobs)}"
+        assert knobs.fit_rules <= set(jobs)
+
+
+def test_forcerun_figures_regenerates_from_cached_data_alone(quick):
+    workdir, base = quick
+    for study in studies(base):
+        knobs = KNOBS[study]
+        root = workdir / "results" / "quick" / study
+        data = {p: p.stat().st_mtime_ns for p in root.rglob("*.nc")}
+        figs = {p: p.stat().st_mtime_ns for p in (root / "figures").glob("fig*.png")}
+        jobs = planned_jobs(workdir, "config/scratch.yaml", "--forcerun", knobs.figure_rule)
+        assert set(jobs) - {"all"} == {knobs.figure_rule}
+        run_snakemake(
+            "--cores", "2", "--configfile", "config/scratch.yaml",
+            "--forcerun", knobs.figure_rule, cwd=workdir,
+        )  # fmt: skip
+        assert {p: p.stat().st_mtime_ns for p in data} == data, "data files were rewritten"
+        assert all(p.stat().st_mtime_ns > t for p, t in figs.items())
+
+
+def test_growing_the_ensemble_reuses_every_batch(quick):
+    workdir, base = quick
+    for study in studies(base):
+        knobs = KNOBS[study]
+        root = workdir / "results" / "quick" / study
+        before = sorted(root.glob(knobs.batch_glob))
+        snap = {p: (p.read_bytes(), p.stat().st_mtime_ns) for p in before}
+        cfg = copy.deepcopy(base)
+        cfg["studies"] = [study]
+        n0 = _get(base[study], knobs.replicas_key)
+        batch = base[study]["ensemble"].get("batch_size", 1)
+        _set(cfg[study], knobs.replicas_key, n0 + batch)
+        configfile = write_config(workdir, cfg, "grown.yaml")
+        jobs = planned_jobs(workdir, configfile)
+        for rule in knobs.sim_rules:
+            assert jobs.get(rule) == 1, f"{study}: growing planned {jobs}"
+        run_snakemake("--cores", "2", "--configfile", configfile, cwd=workdir, timeout=900)
+        after = sorted(root.glob(knobs.batch_glob))
+        assert len(after) == len(before) + 1
+        for p, (content, mtime) in snap.items():
+            assert p.read_bytes() == content and p.stat().st_mtime_ns == mtime
+
+
+def test_sigkill_mid_write_leaves_nothing_and_rerun_is_identical(quick):
+    workdir, base = quick
+    study = studies(base)[0]
+    knobs = KNOBS[study]
+    root = workdir / "results" / "quick" / study
+    target = sorted(root.glob(knobs.batch_glob))[0]
+    reference = data_bytes(target)
+    target.unlink()
+    rel = str(target.relative_to(workdir))
+    proc = subprocess.Popen(
+        [SNAKEMAKE, "--cores", "1", "--configfile", "config/scratch.yaml", rel],
+        cwd=workdir,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        start_new_session=True,
+    )
+    # Wait for the job's temporary file: the write has begun. Then kill everything.
+    deadline = time.monotonic() + 600
+    tmp_seen = False
+    while time.monotonic() < deadline and proc.poll() is None:
+        if list(target.parent.glob(f".{target.name}.*.tmp")):
+            tmp_seen = True
+            break
+        time.sleep(0.005)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not target.exists(), "a killed job left a file under its final name"
+    # The rerun (after Snakemake's lock of the killed run is cleared) recomputes it.
+    run_snakemake("--unlock", "--configfile", "config/scratch.yaml", cwd=workdir)
+    run_snakemake(
+        "--cores", "2", "--configfile", "config/scratch.yaml", "--rerun-incomplete", rel,
+        cwd=workdir, timeout=900,
+    )  # fmt: skip
+    assert data_bytes(target) == reference
+    if not tmp_seen:
+        pytest.fail("the job finished before its temporary file could be observed")
+
+
+def test_second_workflow_on_same_directory_is_refused(quick):
+    """While one run recomputes a batch, a second run on the same directory is refused
+    by Snakemake's lock; the forced recomputation reproduces the batch's data bytes."""
+    workdir, base = quick
+    study = studies(base)[0]
+    knobs = KNOBS[study]
+    target = sorted((workdir / "results" / "quick" / study).glob(knobs.batch_glob))[-1]
+    reference = data_bytes(target)
+    rel = str(target.relative_to(workdir))
+    sim_rule = sorted(knobs.sim_rules)[-1]
+    first = subprocess.Popen(
+        [SNAKEMAKE, "--cores", "1", "--configfile", "config/scratch.yaml",
+         "--forcerun", sim_rule, "--allowed-rules", sim_rule, "--", rel],
+        cwd=workdir, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    )  # fmt: skip
+    locks = workdir / ".snakemake" / "locks"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not list(locks.glob("*.lock")):
+        time.sleep(0.05)
+    assert list(locks.glob("*.lock")), "the first run never took its lock"
+    second = run_snakemake(
+        "--cores", "1", "--configfile", "config/scratch.yaml", "--forcerun", knobs.figure_rule,
+        cwd=workdir, check=False,
+    )  # fmt: skip
+    out, _ = first.communicate(timeout=900)
+    assert second.returncode != 0
+    assert "LockException" in second.stdout + second.stderr or "cannot be locked" in (
+        second.stdout + second.stderr
+    )
+    assert first.returncode == 0, out
+    assert data_bytes(target) == reference
+
+
+def test_report_gathers_every_figure_and_summary(quick):
+    workdir, base = quick
+    run_snakemake(
+        "--configfile", "config/scratch.yaml", "--report", "report.zip", cwd=workdir, timeout=600
+    )
+    names = zipfile.ZipFile(workdir / "report.zip").namelist()
+    for study in studies(base):
+        figures = (workdir / "results" / "quick" / study / "figures").glob("fig*.png")
+        for fig in figures:
+            assert any(n.endswith(fig.name) for n in names), f"{fig.name} missing from report"
+        assert any(n.endswith("summary.csv") for n in names)
+
+
+def test_blow_up_names_replica_and_keep_going_finishes_the_rest(quick):
+    """A timestep far past stability blows up every replica of one study: its jobs fail
+    naming study, point, replica, seed and step; --keep-going still runs the other
+    studies' pending jobs (their figures, forced). Runs last: it changes the scratch state."""
+    workdir, base = quick
+    names = studies(base)
+    if len(names) < 2:
+        pytest.fail("needs two landed studies to show the rest of the workflow continuing")
+    broken, other = names[0], names[1]
+    cfg = copy.deepcopy(base)
+    key = KNOBS[broken].timestep_key
+    _set(cfg[broken], key, 40.0 * _get(base[broken], key))
+    figs = workdir / "results" / "quick" / other / "figures"
+    before = {p: p.stat().st_mtime_ns for p in figs.glob("fig*.png")}
+    proc = run_snakemake(
+        "--cores", "2", "--configfile", write_config(workdir, cfg, "blowup.yaml"),
+        "--keep-going", "--forcerun", KNOBS[other].figure_rule,
+        cwd=workdir, check=False, timeout=900,
+    )  # fmt: skip
+    assert proc.returncode != 0
+    logs = "\n".join(
+        p.read_text() for p in (workdir / "results" / "quick" / "logs" / broken).rglob("*.log")
+    )
+    for word in (f"study={broken}", "point=", "replica=", "seed=", "step="):
+        assert word in logs, f"blow-up message lacks {word!r}:\n{logs[-2000:]}"
+    assert all(p.stat().st_mtime_ns > t for p, t in before.items()), "the rest did not run"
