@@ -1,1 +1,111 @@
-"""granpipe.engine."""
+"""granpipe.engine: a small, jitted 2D DEM engine (SPEC §1 and §3; DESIGN "Engine principles").
+
+Disks in the plane (second coordinate vertical), struct-of-arrays float64, velocity
+Verlet with gravity, cell lists feeding Verlet lists with a skin, two contact laws
+(each a force function and its Jacobian), walls with prescribed motion, and tangent
+dynamics (the exact linearization of the discrete map) for the drum law.
+
+Objects
+-------
+``DrumLaw(k_n, gamma_n, gamma_t, mu)``
+    Drum paper Eq. 1: linear spring-dashpot, viscous friction capped at Coulomb, no
+    spin, damping not scaled by mass. ``.force(d, v, radius_sum)``,
+    ``.jacobian(d, v, radius_sum) -> (J_d, J_v)``, ``.contact_time(m_eff)``,
+    ``.restitution(m_eff)``, ``.wall_force``/``.wall_jacobian`` for flat walls.
+``BoxLaw(kappa_n, kappa_t, gamma_n, gamma_t, mu, mu_wall=None, mu_side=None)``
+    Box paper App. A: m_eff-scaled damping, tangential spring with history truncated
+    at Coulomb, spin with ``I = m sigma²/8``. ``.force(...)``, ``.jacobian(...)`` (4 x 6),
+    ``.contact_time(m_eff)``. ``mu_side = 0`` gives frictionless side walls.
+``WallDisks(centre, omega, omega_after=None, t_switch=inf)``
+    Rigid rotation of the disks flagged ``is_wall`` (counter-clockwise positive; the
+    drum stop is ``omega_after=0`` at ``t_switch``).
+``FlatWalls(x_left, x_right, bottom, z0, amplitude, omega, phase, ramp_start, ramp_time)``
+    Vertical side lines and a bottom at ``z_b(t) = z0 + A r(t) sin(omega t + phase)``.
+``Simulation(law, dt, gravity=(0, -1), wall_disks=None, flat_walls=None, skin=None,
+parallel=True)``
+    ``.new_state(positions, radii, masses, *, velocities, spins, is_wall, inertia, time)
+    -> State`` (or ``Ensemble`` for a leading replica axis);
+    ``.run(state, n_steps, *, stride=0, tangent=False) -> Record`` advances in place;
+    ``.set_tangent(state, dr, dv)``, ``.random_tangent(state, rng, fraction=0.1)``;
+    ``.refresh(state)`` after editing a state in place; ``.replace(**changes)``.
+``State`` / ``Ensemble``
+    Views ``positions, velocities, forces, spins, torques, radii, masses, is_wall,
+    mobile, contacts`` (per-disk contact counts, walls included), ``time``,
+    ``wall_angle``, ``tangent`` (dr, dv at true scale), ``tangent_stored``,
+    ``tangent_log2_scale``; ``kinetic_energy()``, ``max_speed()``, ``global_speed()``,
+    ``speeds()``, ``neighbour_stats()``, ``copy()``. ``Ensemble.stack(states)``,
+    ``ens[r]`` (a State sharing memory). Arrays of an ensemble are ``(R, N, ...)``.
+``Record``
+    ``time (B,)``, ``global_speed``, ``local_lyapunov``, ``lyapunov_count`` (``(B,)`` or
+    ``(R, B)``): exact block means over ``stride`` steps.
+
+Conventions
+-----------
+* One step: half kick, drift, walls, (list rebuild), forces at the half-step
+  velocities, half kick. Forces, contact counts, shear histories, the tangent vector,
+  the time and the wall angle live in the state, so chunked runs are bit-identical to
+  one long run, and replicas run side by side (``Ensemble``, under ``prange``) are
+  bit-identical to replicas run alone.
+* ``lambda(t) = (1/dt) ln(|du(t)|_S / |du(t - dt)|_S)`` with ``du = (dr, dv)`` of the
+  mobile disks (4 per disk, ``dv`` at full steps) and both norms over the set S of
+  disks with at least two contacts (walls count) at the force evaluation of step t
+  (drum paper Sec. III). Steps where either norm is zero (S empty, or the vector lives
+  only on rattlers) are left out of the block mean; ``lyapunov_count`` says how many
+  steps entered each block. The vector is renormalised by exact powers of two.
+* Bad states (NaN/inf, an overlap deeper than half the smaller radius) stop the run
+  with :class:`granpipe.errors.SimulationError` naming the particle, step and time
+  (and ``other`` disk or wall, and ``replica`` for an ensemble).
+
+Worked example
+--------------
+Two disks on a collision course, then the drum of SPEC §1 in miniature::
+
+    import numpy as np
+    from granpipe.engine import DrumLaw, Simulation, WallDisks
+    from granpipe.engine.geometry import ring_of_disks, random_disks_in_circle
+
+    law = DrumLaw(k_n=565.97, gamma_n=8.7308, gamma_t=6.8927, mu=0.44)
+    sim = Simulation(law, dt=1.14368e-3, gravity=(0.0, 0.0))
+    state = sim.new_state([[0.0, 0.0], [1.1, 0.0]], radii=[0.5, 0.5], masses=[1.0, 1.0],
+                          velocities=[[1.0, 0.0], [-1.0, 0.0]])
+    sim.run(state, 200)
+    state.velocities          # [[-0.43, 0], [0.43, 0]]: e = law.restitution(0.5) = 0.43
+
+    ring, radius = ring_of_disks(150, 1.3846)              # circumradius 33.057
+    diam = np.where(np.arange(736) % 2 == 0, 1.0, 1.1667)
+    rng = np.random.default_rng(0)
+    inner = random_disks_in_circle(rng, diam / 2, radius - 0.6923)
+    pos = np.vstack([inner, ring])
+    radii = np.r_[diam / 2, np.full(150, 0.6923)]
+    masses = np.r_[diam**2, np.ones(150)]
+    is_wall = np.arange(886) >= 736
+    sim = Simulation(law, dt=1.14368e-3, wall_disks=WallDisks(omega=0.0))
+    state = sim.new_state(pos, radii, masses, is_wall=is_wall)
+    while True:                                             # settle at rest
+        sim.run(state, 10_000)
+        if state.max_speed() < 1e-3:
+            break
+    t_rot = state.time                                      # rotate clockwise ...
+    sim = sim.replace(wall_disks=WallDisks(omega=-2.4417e-4))
+    sim.random_tangent(state, rng)                          # 10% of 4N components
+    rec = sim.run(state, 35_000, stride=35, tangent=True)   # 40 s of drum time
+    rec.local_lyapunov, rec.global_speed                    # block means, 4 ms blocks
+    # ... and stop it abruptly 5 s into the next window (t in reduced units):
+    sim = sim.replace(wall_disks=WallDisks(omega=-2.4417e-4, omega_after=0.0,
+                                           t_switch=state.time + 5 / 0.034975))
+"""
+
+from granpipe.engine.laws import BoxLaw, DrumLaw
+from granpipe.engine.simulation import Ensemble, Record, Simulation, State
+from granpipe.engine.walls import FlatWalls, WallDisks
+
+__all__ = [
+    "BoxLaw",
+    "DrumLaw",
+    "Ensemble",
+    "FlatWalls",
+    "Record",
+    "Simulation",
+    "State",
+    "WallDisks",
+]

@@ -1,0 +1,765 @@
+"""Public API: :class:`Simulation` (law, walls, step), :class:`State`, :class:`Ensemble`.
+
+The caller owns the loop (STYLE.md, jax-md): build a :class:`Simulation`, create a
+state with :meth:`Simulation.new_state`, then call :meth:`Simulation.run` for
+chunks of steps; the state (positions, velocities, spins, forces, neighbour list,
+shear histories, tangent vector, time, wall angle) carries over exactly between
+chunks, so a run split into chunks is bit-identical to one long run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from granpipe.engine import kernels as K
+from granpipe.engine.laws import BoxLaw, DrumLaw
+from granpipe.engine.neighbours import cell_capacity, pair_capacity
+from granpipe.engine.walls import NO_FLAT_WALLS, NO_WALL_DISKS, FlatWalls, WallDisks
+from granpipe.errors import ConfigError, SimulationError
+
+__all__ = ["Simulation", "State", "Ensemble", "Record"]
+
+_STATUS_TEXT = {
+    K.NONFINITE: "non-finite position or velocity",
+    K.DEEP_OVERLAP: "overlap deeper than half a radius",
+    K.LIST_OVERFLOW: "neighbour list overflow (disks packed beyond the overlap bound)",
+    K.TANGENT_NONFINITE: "non-finite tangent vector",
+}
+_WALL_NAMES = {K.LEFT_WALL: "left wall", K.RIGHT_WALL: "right wall", K.BOTTOM_WALL: "bottom wall"}
+
+
+class Ensemble:
+    """R replicas of a system with the same number of disks, stacked on a leading axis.
+
+    All array properties are views (writable) with shape ``(R, N, ...)``; after editing
+    positions or velocities in place, call :meth:`Simulation.refresh`. Use
+    :meth:`stack` to build one from :class:`State` objects and ``ens[r]`` to get
+    replica ``r`` as a :class:`State` that shares memory with the ensemble.
+    """
+
+    _single = False
+
+    def __init__(self, storage: dict):
+        self._s = storage
+
+    # -- construction -------------------------------------------------------------------
+    @classmethod
+    def stack(cls, states) -> Ensemble:
+        """Stack states (or ensembles) with equal N and law into one ensemble (copies)."""
+        states = list(states)
+        if not states:
+            raise ConfigError("Ensemble.stack needs at least one state")
+        first = states[0]._s
+        for s in states:
+            if s._s["vec"].shape[1:] != first["vec"].shape[1:]:
+                raise ConfigError("Ensemble.stack: states differ in number of disks")
+        storage = {}
+        for key, val in first.items():
+            if isinstance(val, np.ndarray) and val.ndim >= 1 and key not in _SHARED_KEYS:
+                parts = [s._s[key] for s in states]
+                width = max(p.shape[1] for p in parts) if val.ndim >= 2 else None
+                if width is not None and any(p.shape[1] != width for p in parts):
+                    parts = [_pad(p, width) for p in parts]
+                storage[key] = np.ascontiguousarray(np.concatenate(parts, axis=0))
+            else:
+                storage[key] = val
+        return Ensemble(storage)
+
+    def __len__(self):
+        return self._s["vec"].shape[0]
+
+    def __getitem__(self, r) -> State:
+        if not isinstance(r, int | np.integer):
+            raise TypeError("Ensemble index must be an integer")
+        r = int(r)
+        if not -len(self) <= r < len(self):
+            raise IndexError(r)
+        r %= len(self)
+        storage = {}
+        for key, val in self._s.items():
+            if isinstance(val, np.ndarray) and val.ndim >= 1 and key not in _SHARED_KEYS:
+                storage[key] = val[r : r + 1]
+            else:
+                storage[key] = val
+        return State(storage)
+
+    def copy(self):
+        """Deep copy (independent arrays)."""
+        return type(self)(
+            {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self._s.items()}
+        )
+
+    # -- views --------------------------------------------------------------------------
+    def _v(self, arr):
+        return arr[0] if self._single else arr
+
+    @property
+    def replicas(self) -> int:
+        """Number of replicas R."""
+        return self._s["vec"].shape[0]
+
+    @property
+    def n(self) -> int:
+        """Number of disks N (mobile and wall)."""
+        return self._s["vec"].shape[2]
+
+    @property
+    def positions(self):
+        """(N, 2) or (R, N, 2) float64 [length]: disk centres."""
+        return self._v(self._s["vec"][:, K.POS])
+
+    @property
+    def velocities(self):
+        """(N, 2) or (R, N, 2) float64 [length/time]. Wall disks: their prescribed velocity."""
+        return self._v(self._s["vec"][:, K.VEL])
+
+    @property
+    def forces(self):
+        """(N, 2) or (R, N, 2) float64 [force]: total force (contacts and gravity) at the
+        last evaluation (zero on wall disks)."""
+        return self._v(self._s["vec"][:, K.FRC])
+
+    @property
+    def spins(self):
+        """(N,) or (R, N) float64 [rad/time]: angular velocities (counter-clockwise > 0)."""
+        return self._v(self._s["sca"][:, K.SPIN])
+
+    @property
+    def torques(self):
+        """(N,) or (R, N) float64 [force*length] at the last evaluation."""
+        return self._v(self._s["sca"][:, K.TORQUE])
+
+    @property
+    def radii(self):
+        """(N,) or (R, N) float64 [length]."""
+        return self._v(self._s["sca"][:, K.RADIUS])
+
+    @property
+    def masses(self):
+        """(N,) or (R, N) float64 [mass] (a copy; ``inf`` for wall disks)."""
+        with np.errstate(divide="ignore"):
+            return self._v(1.0 / self._s["sca"][:, K.INV_MASS])
+
+    @property
+    def is_wall(self):
+        """(N,) or (R, N) bool (a copy): disks with prescribed motion."""
+        return self._v(self._s["ivec"][:, K.IS_WALL] != 0)
+
+    @property
+    def mobile(self):
+        """(N,) or (R, N) bool (a copy): disks that move under forces."""
+        return ~self.is_wall
+
+    @property
+    def contacts(self):
+        """(N,) or (R, N) int64 (a copy): contacts of each disk at the last force evaluation,
+        walls included; disks with fewer than 2 are rattlers."""
+        return self._v(self._s["ivec"][:, K.CONTACTS].copy())
+
+    @property
+    def time(self):
+        """Current time [time] (float, or (R,) float64)."""
+        t = self._s["clock"][:, K.T_ORIGIN] + self._s["counters"][:, K.STEP] * self._s["dt"]
+        return float(t[0]) if self._single else t
+
+    @property
+    def wall_angle(self):
+        """Rotation angle of the wall disks since the state was created [rad]."""
+        th = self._s["clock"][:, K.THETA].copy()
+        return float(th[0]) if self._single else th
+
+    @property
+    def has_tangent(self) -> bool:
+        """Whether a tangent vector has been set (:meth:`Simulation.set_tangent`)."""
+        return bool(self._s["has_tangent"])
+
+    @property
+    def tangent(self):
+        """``(dr, dv)``: the tangent vector, each (N, 2) or (R, N, 2) float64 (copies),
+        rescaled to its true size ``2**log2_scale * stored`` (wall rows are zero).
+
+        Its scale is arbitrary (it is renormalised by powers of two, which is exact); use
+        :attr:`tangent_log2_scale` with the stored vectors to avoid overflow.
+        """
+        scale = np.ldexp(1.0, self._s["counters"][:, K.LOG2_SCALE])[:, None, None]
+        dr = self._s["vec"][:, K.T_POS] * scale
+        dv = self._s["vec"][:, K.T_VEL] * scale
+        return self._v(dr), self._v(dv)
+
+    @property
+    def tangent_stored(self):
+        """``(dr, dv)`` as stored (views), of norm of order 1 after renormalisation."""
+        return self._v(self._s["vec"][:, K.T_POS]), self._v(self._s["vec"][:, K.T_VEL])
+
+    @property
+    def tangent_log2_scale(self):
+        """Power of two by which the stored tangent vector has been divided in total."""
+        s = self._s["counters"][:, K.LOG2_SCALE].copy()
+        return int(s[0]) if self._single else s
+
+    # -- observables --------------------------------------------------------------------
+    def kinetic_energy(self):
+        """Translational plus rotational kinetic energy of the mobile disks [energy]."""
+        sca = self._s["sca"]
+        vel = self._s["vec"][:, K.VEL]
+        mob = self._s["ivec"][:, K.IS_WALL] == 0
+        with np.errstate(divide="ignore"):
+            m = np.where(mob, 1.0 / np.where(mob, sca[:, K.INV_MASS], 1.0), 0.0)
+            inv_i = sca[:, K.INV_INERTIA]
+            inertia = np.where(mob & (inv_i > 0), 1.0 / np.where(inv_i > 0, inv_i, 1.0), 0.0)
+        ke = 0.5 * (m * (vel**2).sum(-1)).sum(-1)
+        if self._s["has_spin"]:
+            ke = ke + 0.5 * (inertia * sca[:, K.SPIN] ** 2).sum(-1)
+        return float(ke[0]) if self._single else ke
+
+    def speeds(self):
+        """|v_i| of every disk, (N,) or (R, N) [length/time] (wall disks: their speed)."""
+        return np.linalg.norm(self.velocities, axis=-1)
+
+    def max_speed(self):
+        """Largest speed among the mobile disks [length/time]."""
+        vel = self._s["vec"][:, K.VEL]
+        mob = self._s["ivec"][:, K.IS_WALL] == 0
+        sp = np.where(mob, np.sqrt((vel**2).sum(-1)), 0.0).max(-1)
+        return float(sp[0]) if self._single else sp
+
+    def global_speed(self):
+        """``V = sqrt(sum_i |v_i|²)`` over the mobile disks (drum paper) [length/time]."""
+        vel = self._s["vec"][:, K.VEL]
+        mob = self._s["ivec"][:, K.IS_WALL] == 0
+        v = np.sqrt(np.where(mob, (vel**2).sum(-1), 0.0).sum(-1))
+        return float(v[0]) if self._single else v
+
+    def neighbour_stats(self) -> dict:
+        """Counters: steps run, list rebuilds, pairs in the list, mean contacts per step."""
+        c = self._s["counters"]
+        steps = c[:, K.STEPS_RUN].astype(float)
+        out = {
+            "steps_run": c[:, K.STEPS_RUN].copy(),
+            "rebuilds": c[:, K.N_REBUILDS].copy(),
+            "pairs": c[:, K.N_PAIRS].copy(),
+            "pair_capacity": self._s["pair_j"].shape[1],
+            "mean_contacts": np.where(steps > 0, c[:, K.CONTACT_SUM] / np.maximum(steps, 1), 0.0),
+        }
+        if self._single:
+            out = {k: (v[0] if isinstance(v, np.ndarray) else v) for k, v in out.items()}
+        return out
+
+    def reset_counters(self):
+        """Zero the statistics counters (steps run, rebuilds, contact sum)."""
+        c = self._s["counters"]
+        c[:, K.STEPS_RUN] = 0
+        c[:, K.N_REBUILDS] = 0
+        c[:, K.CONTACT_SUM] = 0
+
+
+class State(Ensemble):
+    """One system: arrays have shape ``(N, ...)``. See :class:`Ensemble` for attributes."""
+
+    _single = True
+
+
+# storage entries shared by all replicas (not stacked)
+_SHARED_KEYS = {"dt", "law_id", "has_spin", "has_tangent", "centre", "skin"}
+
+
+def _pad(arr, width):
+    out = np.zeros(arr.shape[:1] + (width,) + arr.shape[2:], dtype=arr.dtype)
+    out[:, : arr.shape[1]] = arr
+    return out
+
+
+@dataclass(frozen=True)
+class Record:
+    """Block means recorded by :meth:`Simulation.run` (exact means of per-step values).
+
+    Attributes
+    ----------
+    time : (B,) float64 [time]
+        Centre of each block: mean of its steps' times.
+    global_speed : (B,) or (R, B) float64 [length/time]
+        Block mean of ``V(t) = sqrt(sum_i |v_i(t)|²)`` over mobile disks (drum paper).
+    local_lyapunov : (B,) or (R, B) float64 [1/time]
+        Block mean of ``lambda(t) = (1/dt) ln(|du(t)|_S / |du(t - dt)|_S)`` over the
+        steps where it is defined (both norms > 0); NaN where none is. Only with tangent.
+    lyapunov_count : (B,) or (R, B) int64
+        Number of steps averaged in each block of ``local_lyapunov``.
+    stride : int
+        Steps per block.
+    """
+
+    time: np.ndarray
+    global_speed: np.ndarray
+    local_lyapunov: np.ndarray | None = None
+    lyapunov_count: np.ndarray | None = None
+    stride: int = 0
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """A 2D DEM system: contact law, walls, gravity and time step.
+
+    Parameters
+    ----------
+    law : DrumLaw or BoxLaw
+        Contact law for disk pairs and disk-wall contacts.
+    dt : float [time]
+        Time step of velocity Verlet.
+    gravity : (2,) float [length/time²]
+        Acceleration of gravity (default ``(0, -1)``: g = 1 downward, reduced units).
+    wall_disks : WallDisks or None
+        Motion of the disks flagged as walls (default: they stay still).
+    flat_walls : FlatWalls or None
+        Flat line walls (default: none).
+    skin : float or None [length]
+        Verlet skin; the list is rebuilt once a disk has moved ``skin/2``
+        (default: 0.1 times the smallest radius at state creation).
+    parallel : bool
+        Run ensembles of several replicas under ``prange`` (results are identical
+        either way).
+    """
+
+    law: DrumLaw | BoxLaw
+    dt: float
+    gravity: tuple[float, float] = (0.0, -1.0)
+    wall_disks: WallDisks | None = None
+    flat_walls: FlatWalls | None = None
+    skin: float | None = None
+    parallel: bool = True
+
+    def __post_init__(self):
+        if not isinstance(self.law, DrumLaw | BoxLaw):
+            raise ConfigError("law must be a DrumLaw or a BoxLaw")
+        if not (math.isfinite(self.dt) and self.dt > 0):
+            raise ConfigError(f"dt must be > 0, got {self.dt!r}")
+        if len(self.gravity) != 2:
+            raise ConfigError("gravity must have 2 components")
+        if self.skin is not None and not self.skin > 0:
+            raise ConfigError(f"skin must be > 0, got {self.skin!r}")
+
+    def replace(self, **changes) -> Simulation:
+        """A copy with some fields changed (e.g. ``sim.replace(wall_disks=WallDisks(...))``)."""
+        return dataclasses.replace(self, **changes)
+
+    # -- kernel parameters --------------------------------------------------------------
+    def _params(self):
+        g = np.asarray(self.gravity, dtype=np.float64)
+        wd = NO_WALL_DISKS if self.wall_disks is None else self.wall_disks.params()
+        fw = NO_FLAT_WALLS if self.flat_walls is None else self.flat_walls.params()
+        return g, self.law.params(), wd, fw
+
+    # -- states -------------------------------------------------------------------------
+    def new_state(
+        self,
+        positions,
+        radii,
+        masses,
+        *,
+        velocities=None,
+        spins=None,
+        is_wall=None,
+        inertia=None,
+        time=0.0,
+    ) -> State | Ensemble:
+        """Create a state and evaluate its forces.
+
+        Parameters
+        ----------
+        positions : (N, 2) or (R, N, 2) float64 [length]
+            Disk centres, wall disks included. A leading replica axis gives an
+            :class:`Ensemble`.
+        radii : (N,) or (R, N) float64 [length]
+            Radii (half the diameters).
+        masses : (N,) or (R, N) float64 [mass]
+            Masses (ignored for wall disks, which have infinite mass).
+        velocities : (N, 2) or (R, N, 2) float64 [length/time], optional
+            Initial velocities of the mobile disks (default 0; wall disks get their
+            prescribed velocity).
+        spins : (N,) or (R, N) float64 [rad/time], optional
+            Initial angular velocities (box law only; default 0).
+        is_wall : (N,) or (R, N) bool, optional
+            Disks whose motion is prescribed by ``wall_disks`` (default: none).
+        inertia : (N,) or (R, N) float64 [mass*length²], optional
+            Moments of inertia (box law; default ``m sigma²/8 = m a²/2``; ``inf`` keeps
+            a disk from turning).
+        time : float [time]
+            Time of the state (default 0).
+
+        Returns
+        -------
+        State (or Ensemble with a replica axis)
+        """
+        pos = np.asarray(positions, dtype=np.float64)
+        single = pos.ndim == 2
+        pos = pos[None] if single else pos
+        if pos.ndim != 3 or pos.shape[2] != 2:
+            raise ConfigError(f"positions must be (N, 2) or (R, N, 2), got {np.shape(positions)}")
+        r_count, n = pos.shape[:2]
+
+        def per_disk(x, name, default=None, dtype=np.float64):
+            if x is None:
+                x = default
+            a = np.asarray(x, dtype=dtype)
+            a = np.broadcast_to(a, (r_count, n)) if a.ndim <= 1 else a
+            if a.shape != (r_count, n):
+                raise ConfigError(f"{name} must have shape (N,) or (R, N); got {a.shape}")
+            return a
+
+        rad = per_disk(radii, "radii")
+        mass = per_disk(masses, "masses")
+        wall = per_disk(is_wall, "is_wall", default=False, dtype=bool)
+        if not np.all(np.isfinite(rad) & (rad > 0)):
+            raise ConfigError("radii must be finite and > 0")
+        if not np.all(wall | (np.isfinite(mass) & (mass > 0))):
+            raise ConfigError("masses of mobile disks must be finite and > 0")
+        if not np.all(np.isfinite(pos)):
+            raise ConfigError("positions must be finite")
+        vel = np.zeros_like(pos) if velocities is None else np.asarray(velocities, np.float64)
+        vel = vel[None] if vel.ndim == 2 else vel
+        if vel.shape != pos.shape:
+            raise ConfigError(f"velocities must have the shape of positions, got {vel.shape}")
+        spin = per_disk(spins, "spins", default=0.0)
+        if spins is not None and not self.law.has_spin:
+            raise ConfigError("spins need a law with rotation (BoxLaw)")
+        with np.errstate(divide="ignore"):
+            inv_mass = np.where(wall, 0.0, 1.0 / np.where(wall, 1.0, mass))
+            if inertia is None:
+                inv_inertia = np.where(wall, 0.0, 2.0 / (np.where(wall, 1.0, mass) * rad**2))
+            else:
+                inert = per_disk(inertia, "inertia")
+                inv_inertia = np.where(wall, 0.0, 1.0 / inert)
+        if not self.law.has_spin:
+            inv_inertia = np.zeros_like(inv_inertia)
+
+        skin = self.skin if self.skin is not None else 0.1 * float(rad.min())
+        cap = max(pair_capacity(rad[r], skin) for r in range(r_count))
+        ccap = cell_capacity(n)
+        nw = wall.sum(axis=1)
+        n_wmax = max(int(nw.max()), 1)
+        walls = np.zeros((r_count, n_wmax), dtype=np.int64)
+        for r in range(r_count):
+            idx = np.flatnonzero(wall[r])
+            walls[r, : idx.size] = idx
+
+        vec = np.zeros((r_count, K.NV, n, 2))
+        sca = np.zeros((r_count, K.NS, n))
+        ivec = np.zeros((r_count, K.NI, n), dtype=np.int64)
+        vec[:, K.POS] = pos
+        vec[:, K.VEL] = np.where(wall[..., None], 0.0, vel)
+        centre = (
+            np.zeros(2) if self.wall_disks is None else np.asarray(self.wall_disks.centre, float)
+        )
+        vec[:, K.WALL_REF] = np.where(wall[..., None], pos - centre, 0.0)
+        sca[:, K.RADIUS] = rad
+        sca[:, K.INV_MASS] = inv_mass
+        sca[:, K.INV_INERTIA] = inv_inertia
+        sca[:, K.SPIN] = np.where(wall, 0.0, spin)
+        ivec[:, K.IS_WALL] = wall
+        clock = np.zeros((r_count, K.NCLOCK))
+        clock[:, K.T_ORIGIN] = float(time)
+        counters = np.zeros((r_count, K.NCOUNT), dtype=np.int64)
+        counters[:, K.N_WALLS] = nw
+        storage = {
+            "vec": vec,
+            "sca": sca,
+            "ivec": ivec,
+            "walls": walls,
+            "pair_start": np.zeros((r_count, n + 1), dtype=np.int64),
+            "pair_j": np.zeros((r_count, cap), dtype=np.int32),
+            "pair_xi": np.zeros((r_count, cap)),
+            "old_start": np.zeros((r_count, n + 1), dtype=np.int64),
+            "old_j": np.zeros((r_count, cap), dtype=np.int32),
+            "old_xi": np.zeros((r_count, cap)),
+            "cell_count": np.zeros((r_count, ccap + 1), dtype=np.int64),
+            "cell_start": np.zeros((r_count, ccap + 1), dtype=np.int64),
+            "clock": clock,
+            "counters": counters,
+            "info": np.zeros((r_count, 4), dtype=np.int64),
+            "dt": float(self.dt),
+            "law_id": self.law.law_id,
+            "has_spin": self.law.has_spin,
+            "has_tangent": False,
+            "centre": tuple(float(c) for c in centre),
+            "skin": skin,
+        }
+        state = State(storage) if single else Ensemble(storage)
+        self.refresh(state)
+        return state
+
+    def _check(self, state):
+        s = state._s
+        if s["law_id"] != self.law.law_id:
+            raise ConfigError("state was created under a different contact law")
+        centre = (
+            (0.0, 0.0) if self.wall_disks is None else tuple(map(float, self.wall_disks.centre))
+        )
+        if s["counters"][:, K.N_WALLS].any() and centre != s["centre"]:
+            raise ConfigError("wall_disks.centre differs from the one the state was created with")
+        if s["dt"] != self.dt:
+            # keep the time continuous under a change of step: new origin here
+            t = s["clock"][:, K.T_ORIGIN] + s["counters"][:, K.STEP] * s["dt"]
+            s["clock"][:, K.T_ORIGIN] = t
+            s["counters"][:, K.STEP] = 0
+            s["dt"] = float(self.dt)
+        skin = self.skin if self.skin is not None else s["skin"]
+        if skin != s["skin"]:
+            rad = s["sca"][:, K.RADIUS]
+            cap = max(pair_capacity(rad[r], skin) for r in range(rad.shape[0]))
+            if cap > s["pair_j"].shape[1]:
+                npair = s["pair_j"].shape[1]
+                for key in ("pair_j", "pair_xi", "old_j", "old_xi"):
+                    grown = np.zeros((s[key].shape[0], cap), dtype=s[key].dtype)
+                    grown[:, :npair] = s[key]
+                    s[key] = grown
+            s["skin"] = skin
+            s["counters"][:, K.FORCE_REBUILD] = 1
+        return skin
+
+    def _raise(self, state):
+        info = state._s["info"]
+        bad = np.flatnonzero(info[:, 0])
+        if bad.size == 0:
+            return
+        r = int(bad[0])
+        status, particle, other, step = (int(x) for x in info[r])
+        info[:, :] = 0
+        t = state._s["clock"][r, K.T_ORIGIN] + step * state._s["dt"]
+        ctx = {}
+        if other >= 0:
+            ctx["other"] = other
+        elif other in _WALL_NAMES:
+            ctx["other"] = _WALL_NAMES[other]
+        if not state._single:
+            ctx["replica"] = r
+        raise SimulationError(
+            _STATUS_TEXT.get(status, f"status {status}"),
+            particle=particle if particle >= 0 else None,
+            step=step,
+            time=float(t),
+            **ctx,
+        )
+
+    def refresh(self, state) -> None:
+        """Re-place the walls, rebuild the neighbour list and re-evaluate the forces.
+
+        Call after editing positions or velocities of a state in place. Forces use the
+        current (full-step) velocities; shear histories are kept, not advanced. With a
+        tangent vector set, its force perturbation is re-evaluated too.
+        """
+        skin = self._check(state)
+        g, law, wd, fw = self._params()
+        s = state._s
+        K.refresh_serial(
+            self.law.law_id,
+            bool(s["has_tangent"]),
+            g,
+            law,
+            wd,
+            fw,
+            skin,
+            s["vec"],
+            s["sca"],
+            s["ivec"],
+            s["walls"],
+            s["pair_start"],
+            s["pair_j"],
+            s["pair_xi"],
+            s["old_start"],
+            s["old_j"],
+            s["old_xi"],
+            s["cell_count"],
+            s["cell_start"],
+            s["clock"],
+            s["counters"],
+            self.dt,
+            s["info"],
+        )
+        self._raise(state)
+
+    def set_tangent(self, state, dr, dv) -> None:
+        """Set the tangent vector ``du = (dr, dv)`` (drum law only; wall rows are ignored).
+
+        Parameters
+        ----------
+        dr, dv : (N, 2) or (R, N, 2) float64
+            Perturbations of positions and velocities. The matching force
+            perturbation ``dF = J_r dr + J_v dv`` is evaluated at the current state;
+            the forces themselves are left untouched, so setting a tangent vector
+            never changes the trajectory.
+        """
+        if self.law.law_id != 0:
+            raise ConfigError("tangent dynamics is implemented for the drum law only")
+        self._check(state)
+        s = state._s
+        dr = np.asarray(dr, np.float64)
+        dv = np.asarray(dv, np.float64)
+        shape = s["vec"][:, K.POS].shape
+        dr = dr.reshape(shape)
+        dv = dv.reshape(shape)
+        wall = s["ivec"][:, K.IS_WALL, :, None] != 0
+        s["vec"][:, K.T_POS] = np.where(wall, 0.0, dr)
+        s["vec"][:, K.T_VEL] = np.where(wall, 0.0, dv)
+        s["counters"][:, K.LOG2_SCALE] = 0
+        s["has_tangent"] = True
+        g, law, wd, fw = self._params()
+        saved_f = s["vec"][:, K.FRC].copy()
+        saved_c = s["ivec"][:, K.CONTACTS].copy()
+        K.tangent_forces_serial(
+            g,
+            law,
+            fw,
+            s["vec"],
+            s["sca"],
+            s["ivec"],
+            s["pair_start"],
+            s["pair_j"],
+            s["clock"],
+            s["counters"],
+            self.dt,
+            s["info"],
+        )
+        s["vec"][:, K.FRC] = saved_f
+        s["ivec"][:, K.CONTACTS] = saved_c
+        self._raise(state)
+
+    def random_tangent(self, state, rng, fraction=0.1) -> None:
+        """Set a random tangent vector as the drum paper does (Sec. III).
+
+        About ``fraction`` of the 4 N_mobile components, chosen uniformly at random,
+        get values uniform in [-1, 1]; the others are zero.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+        fraction : float
+        """
+        s = state._s
+        r_count, n = s["vec"].shape[0], s["vec"].shape[2]
+        mob = s["ivec"][:, K.IS_WALL] == 0
+        du = np.zeros((r_count, n, 4))
+        for r in range(r_count):
+            idx = np.flatnonzero(mob[r])
+            comps = rng.random((idx.size, 4)) < fraction
+            du[r, idx] = np.where(comps, rng.uniform(-1.0, 1.0, (idx.size, 4)), 0.0)
+        self.set_tangent(state, du[..., :2], du[..., 2:])
+
+    # -- running ------------------------------------------------------------------------
+    def run(self, state, n_steps, *, stride=0, tangent=False) -> Record:
+        """Advance ``state`` in place by ``n_steps`` steps.
+
+        Parameters
+        ----------
+        state : State or Ensemble
+        n_steps : int
+            Number of velocity-Verlet steps.
+        stride : int
+            If > 0, record block means over ``stride`` steps (``n_steps`` must be a
+            multiple); see :class:`Record`.
+        tangent : bool
+            Evolve the tangent vector too (drum law; set it first with
+            :meth:`set_tangent` or :meth:`random_tangent`) and record ``local_lyapunov``.
+
+        Returns
+        -------
+        Record
+            Block means (empty arrays when ``stride == 0``).
+
+        Raises
+        ------
+        SimulationError
+            On a non-finite state or an overlap deeper than half a radius; names the
+            particle, step and time (and replica for an ensemble). The state is left as
+            it was at the failing step.
+        """
+        n_steps = int(n_steps)
+        stride = int(stride)
+        if n_steps < 0:
+            raise ConfigError("n_steps must be >= 0")
+        if stride < 0 or (stride > 0 and n_steps % stride):
+            raise ConfigError(f"n_steps ({n_steps}) must be a multiple of stride ({stride})")
+        if tangent and self.law.law_id != 0:
+            raise ConfigError("tangent dynamics is implemented for the drum law only")
+        if tangent and not state.has_tangent:
+            raise ConfigError("set a tangent vector first (Simulation.set_tangent)")
+        skin = self._check(state)
+        s = state._s
+        r_count = s["vec"].shape[0]
+        blocks = n_steps // stride if stride else 0
+        t_start = s["clock"][:, K.T_ORIGIN] + s["counters"][:, K.STEP] * self.dt
+        speed = np.zeros((r_count, blocks))
+        g, law, wd, fw = self._params()
+        par = self.parallel and r_count > 1
+        if self.law.law_id == 0:
+            lam = np.zeros((r_count, blocks))
+            nlam = np.zeros((r_count, blocks), dtype=np.int64)
+            fn = K.drum_run_parallel if par else K.drum_run_serial
+            fn(
+                n_steps,
+                stride,
+                bool(tangent),
+                self.dt,
+                g,
+                law,
+                wd,
+                fw,
+                skin,
+                s["vec"],
+                s["sca"],
+                s["ivec"],
+                s["walls"],
+                s["pair_start"],
+                s["pair_j"],
+                s["cell_count"],
+                s["cell_start"],
+                s["clock"],
+                s["counters"],
+                lam,
+                nlam,
+                speed,
+                s["info"],
+            )
+        else:
+            lam = nlam = None
+            fn = K.box_run_parallel if par else K.box_run_serial
+            fn(
+                n_steps,
+                stride,
+                self.dt,
+                g,
+                law,
+                wd,
+                fw,
+                skin,
+                s["vec"],
+                s["sca"],
+                s["ivec"],
+                s["walls"],
+                s["pair_start"],
+                s["pair_j"],
+                s["pair_xi"],
+                s["old_start"],
+                s["old_j"],
+                s["old_xi"],
+                s["cell_count"],
+                s["cell_start"],
+                s["clock"],
+                s["counters"],
+                speed,
+                s["info"],
+            )
+        self._raise(state)
+        # block b holds steps b*stride+1 .. (b+1)*stride after the start
+        centre = (np.arange(blocks) * stride + 0.5 * (stride + 1)) * self.dt
+        time = t_start[0] + centre
+        one = state._single
+        return Record(
+            time=time,
+            global_speed=speed[0] if one else speed,
+            local_lyapunov=None if not tangent else (lam[0] if one else lam),
+            lyapunov_count=None if not tangent else (nlam[0] if one else nlam),
+            stride=stride,
+        )

@@ -1,0 +1,127 @@
+"""Bit-identical results: repeated runs, chunking, replicas side by side; bad states raise."""
+
+import numpy as np
+import pytest
+
+from granpipe.engine import BoxLaw, Ensemble, FlatWalls, Simulation, WallDisks
+from granpipe.engine.geometry import random_disks_in_box
+from granpipe.errors import SimulationError
+from tests.engine.conftest import DRUM_LAW, DT_DRUM, small_drum
+
+BOX_LAW = BoxLaw(kappa_n=1e6, kappa_t=1e4, gamma_n=100.0, gamma_t=100.0, mu=0.6)
+DT_BOX = BOX_LAW.contact_time(0.5) / 50
+
+
+def drum_state(seed):
+    pos, radii, masses, is_wall, _ = small_drum(seed=seed)
+    sim = Simulation(DRUM_LAW, dt=DT_DRUM, wall_disks=WallDisks(omega=-0.05))
+    rng = np.random.default_rng(seed)
+    vel = np.where(is_wall[:, None], 0.0, rng.normal(0, 0.5, pos.shape))
+    state = sim.new_state(pos, radii, masses, velocities=vel, is_wall=is_wall)
+    sim.random_tangent(state, rng, fraction=0.3)
+    return sim, state
+
+
+def box_state(seed):
+    rng = np.random.default_rng(seed)
+    n = 40
+    flat = FlatWalls(x_left=0.0, x_right=8.0, bottom=True, z0=0.0, amplitude=0.3, omega=3.0)
+    pos = random_disks_in_box(rng, np.full(n, 0.5), (0, 0.35), (8, 12))
+    sim = Simulation(BOX_LAW, dt=DT_BOX, flat_walls=flat)
+    state = sim.new_state(pos, np.full(n, 0.5), np.ones(n), velocities=rng.normal(0, 1, (n, 2)))
+    return sim, state
+
+
+def arrays(state):
+    s = state._s
+    return [s["vec"], s["sca"], s["ivec"], s["clock"], s["counters"], s["pair_xi"]]
+
+
+def assert_identical(a, b):
+    for x, y in zip(arrays(a), arrays(b), strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
+def run(sim, state, chunks, tangent):
+    recs = [sim.run(state, c, stride=50, tangent=tangent) for c in chunks]
+    speed = np.concatenate([r.global_speed for r in recs], axis=-1)
+    lam = np.concatenate([r.local_lyapunov for r in recs], axis=-1) if tangent else None
+    return speed, lam
+
+
+@pytest.mark.parametrize("kind", ["drum", "box"])
+def test_repeated_and_chunked_runs_are_bit_identical(kind):
+    make, tangent, n = (drum_state, True, 2000) if kind == "drum" else (box_state, False, 6000)
+    sim, a = make(0)
+    _, b = make(0)
+    _, c = make(0)
+    sa, la = run(sim, a, [n], tangent)
+    sb, lb = run(sim, b, [n], tangent)
+    sc, lc = run(sim, c, [n // 4, n // 2, n // 4], tangent)
+    assert_identical(a, b)
+    assert_identical(a, c)
+    np.testing.assert_array_equal(sa, sb)
+    np.testing.assert_array_equal(sa, sc)
+    if tangent:
+        np.testing.assert_array_equal(la, lc)
+        assert np.isfinite(la).sum() > len(la) // 2
+
+
+@pytest.mark.parametrize("kind", ["drum", "box"])
+@pytest.mark.parametrize("parallel", [True, False])
+def test_replicas_side_by_side_equal_replicas_alone(kind, parallel):
+    make, tangent, n = (drum_state, True, 1000) if kind == "drum" else (box_state, False, 3000)
+    singles = [make(seed) for seed in (1, 2, 3)]
+    sim = singles[0][0].replace(parallel=parallel)
+    ens = Ensemble.stack([s for _, s in singles])
+    rec = sim.run(ens, n, stride=50, tangent=tangent)
+    assert rec.global_speed.shape == (3, n // 50)
+    for r, (_, alone) in enumerate(singles):
+        rec1 = sim.run(alone, n, stride=50, tangent=tangent)
+        np.testing.assert_array_equal(ens[r].positions, alone.positions)
+        np.testing.assert_array_equal(ens[r].velocities, alone.velocities)
+        np.testing.assert_array_equal(rec.global_speed[r], rec1.global_speed)
+        if tangent:
+            np.testing.assert_array_equal(rec.local_lyapunov[r], rec1.local_lyapunov)
+            np.testing.assert_array_equal(ens[r].tangent[0], alone.tangent[0])
+
+
+def test_non_finite_state_raises_with_particle_step_and_time():
+    sim, state = drum_state(0)
+    sim.run(state, 10)
+    state.velocities[7, 0] = np.nan
+    with pytest.raises(SimulationError) as err:
+        sim.run(state, 10)
+    assert err.value.particle == 7
+    assert err.value.step == 11
+    assert err.value.time == pytest.approx(11 * DT_DRUM)
+    assert "non-finite" in str(err.value)
+
+
+def test_deep_overlap_raises_naming_both_disks():
+    sim = Simulation(DRUM_LAW, dt=DT_DRUM, gravity=(0.0, 0.0))
+    state = sim.new_state([[0, 0], [1.2, 0]], [0.5, 0.5], [1, 1], velocities=[[40, 0], [0, 0]])
+    with pytest.raises(SimulationError) as err:
+        sim.run(state, 100)
+    e = err.value
+    assert e.particle == 0 and e.context["other"] == 1
+    assert 0 < e.step < 100 and e.time == pytest.approx(e.step * DT_DRUM)
+
+
+def test_deep_overlap_with_flat_wall_and_in_ensemble_names_wall_and_replica():
+    flat = FlatWalls(bottom=True, z0=0.0)
+    sim = Simulation(BOX_LAW, dt=DT_BOX, flat_walls=flat)
+    ok = sim.new_state([[0.0, 2.0]], [0.5], [1.0])
+    bad = sim.new_state([[0.0, 2.0]], [0.5], [1.0], velocities=[[0.0, -2000.0]])
+    ens = Ensemble.stack([ok, bad])
+    with pytest.raises(SimulationError) as err:
+        sim.run(ens, 100)
+    assert err.value.context == {"other": "bottom wall", "replica": 1}
+    assert err.value.particle == 0
+
+
+def test_initial_deep_overlap_is_reported_at_creation():
+    sim = Simulation(DRUM_LAW, dt=DT_DRUM)
+    with pytest.raises(SimulationError) as err:
+        sim.new_state([[0, 0], [0.6, 0]], [0.5, 0.5], [1, 1])
+    assert err.value.step == 0
