@@ -27,7 +27,6 @@ choice), because our timing need not match the paper's.
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -363,19 +362,24 @@ def _window_analysis(
     n = int(ens.attrs["n_replicas"])
     out: dict[str, FitResult] = {}
     if vertex_window is not None:
-        out["change"] = vertex_time(t, mV, vertex_window, sV, quantity=f"{w}_time{suffix}", n=n)
+        vwin = vertex_window
+        if not np.all(np.isfinite(vwin)):
+            # no V minimum found: a NaN result without a window
+            vwin, hw_v, search_v = "auto", 0.0, (np.nan, np.nan)
+        else:
+            hw_v, search_v = None, None
+        out["change"] = vertex_time(
+            t, mV, vwin, sV, half_width=hw_v, search=search_v, quantity=f"{w}_time{suffix}", n=n
+        )
         change: FitResult | float = out["change"]
-        v_ref = out["change"].t_ref
     else:
         change = float(stop)
-    if zero_window == "auto":
-        centre = float(first_crossing(t, moving_average(mL, q), search, direction))
-        zwin = (centre - half_width, centre + half_width)
-    else:
-        zwin = tuple(zero_window)
-    out["sign"] = zero_crossing_time(t, mL, zwin, sL, quantity=f"{w}_sign_change_time{suffix}", n=n)
-    if zero_window == "auto":
-        out["sign"] = dataclasses.replace(out["sign"], method=out["sign"].method + " (auto window)")
+    # "auto": centred on the first crossing of λ̄ within ``search`` (NaN result if none)
+    zwin = "auto" if zero_window == "auto" else tuple(zero_window)
+    out["sign"] = zero_crossing_time(
+        t, mL, zwin, sL, half_width=half_width, search=search, smooth_q=q,
+        direction=direction, quantity=f"{w}_sign_change_time{suffix}", n=n,
+    )  # fmt: skip
     out["lag"] = lag(out["sign"], change, quantity=f"{w}_lag{suffix}")
     z_ref = out["sign"].t_ref
 
@@ -389,10 +393,14 @@ def _window_analysis(
         if vertex_window is None:
             v = np.full_like(z, float(stop))
         else:
-            v, _, _ = vertex_times(t, mv, vertex_window, sV, t_ref=v_ref)
+            c = out["change"]
+            v, _, _ = vertex_times(t, mv, c.window, sV, t_ref=c.t_ref)
         return np.stack([v, z, z - v], axis=-1)
 
-    if np.isfinite(out["sign"].value) and int(cfg["bootstrap_resamples"]) > 0:
+    fitted = np.isfinite(out["sign"].value) and (
+        vertex_window is None or np.isfinite(out["change"].value)
+    )
+    if fitted and int(cfg["bootstrap_resamples"]) > 0:
         boot = _boot(units, statistic, cfg)
         if "change" in out:
             out["change"] = out["change"].with_ci(boot, 0)
