@@ -3,8 +3,6 @@
 # depends on (schema defaults filled), so a config edit reruns exactly what it touches:
 # physics/settle/protocol/batch_size -> everything; exclude_flagged -> ensemble onwards;
 # fits -> fits and figures; figures -> figures. n_replicas only adds batches.
-# conda: one environment for the whole package (pinned like constraints.txt); only used
-# with --use-conda.
 
 from granpipe.drum import layout as drum_layout
 from granpipe.drum.settings import PHYSICS_KEYS as DRUM_PHYSICS_KEYS
@@ -31,8 +29,6 @@ rule drum_init:
         out("drum", "init", drum_layout.point_name(DRUM), "batch_{drum_batch}.nc"),
     params:
         json=lambda w: as_json(DRUM_SIM),
-    conda:
-        "../envs/granpipe.yaml"
     log:
         log_path("drum", "init", "batch_{drum_batch}.log"),
     threads: DRUM["ensemble"]["threads"]
@@ -54,8 +50,6 @@ rule drum_runs:
         out("drum", "runs", drum_layout.point_name(DRUM), "batch_{drum_batch}.nc"),
     params:
         json=lambda w: as_json(DRUM_SIM),
-    conda:
-        "../envs/granpipe.yaml"
     log:
         log_path("drum", "runs", "batch_{drum_batch}.log"),
     threads: DRUM["ensemble"]["threads"]
@@ -77,8 +71,6 @@ rule drum_ensemble:
         out("drum", drum_layout.ensemble_file(DRUM)),
     params:
         json=lambda w: as_json(DRUM_ENSEMBLE),
-    conda:
-        "../envs/granpipe.yaml"
     log:
         log_path("drum", "ensemble.log"),
     threads: 1
@@ -100,8 +92,6 @@ rule drum_fits:
         summary=out("drum", drum_layout.summary_file()),
     params:
         json=lambda w: as_json(DRUM_FITS),
-    conda:
-        "../envs/granpipe.yaml"
     log:
         log_path("drum", "fits.log"),
     threads: 1
@@ -144,8 +134,6 @@ rule drum_figures:
     params:
         json=lambda w: as_json({"figures": DRUM["figures"]}),
         outdir=lambda w, output: str(Path(output.fig2).parent),
-    conda:
-        "../envs/granpipe.yaml"
     log:
         log_path("drum", "figures.log"),
     threads: 1
