@@ -1,2 +1,181 @@
-# box study (SPEC.md): stages init -> runs -> ensemble -> fits -> figures.
-# The rules land with the study; until then the study contributes no targets.
+# box study (SPEC.md §3): stages init -> runs -> ensemble -> fits -> figures.
+# Rules only call `granpipe box <stage>`; params carry the exact config subset each stage
+# depends on (granpipe.box.layout.*_params), so a config edit reruns exactly what it
+# touches: physics/init -> everything; protocol -> runs onwards (measured_periods only adds
+# or drops whole parts); detection/slips/order -> ensemble onwards; fits -> fits, figures.
+# Point lists come from granpipe.box.layout, the same functions `granpipe status` uses.
+
+from granpipe.box import layout as box_layout
+
+if "box" in config:
+    BOX = config["box"]
+    BOX_ENSEMBLE_FILES = [out("box", f) for f in box_layout.ensemble_files(BOX)]
+    BOX_INIT_FILES = [out("box", f) for f in box_layout.init_files(BOX)]
+
+    wildcard_constraints:
+        box_nl=r"\d+",
+        box_gamma=r"[0-9.]+(e[-+]?[0-9]+)?",
+        box_init=r"crystal|random",
+        box_rep=r"\d{4}",
+        box_part=r"\d{3}",
+
+    rule box_init:
+        """Crystal (relaxed lattice) or random (placement, fall, settle) initial state."""
+        output:
+            out("box", "init", "N_l={box_nl},init={box_init}", "replica_{box_rep}.nc"),
+        params:
+            json=lambda w: as_json(box_layout.init_params(BOX)),
+        conda:
+            "../envs/granpipe.yaml"
+        log:
+            log_path("box", "init", "N_l={box_nl},init={box_init}", "replica_{box_rep}.log"),
+        threads: 1
+        resources:
+            runtime=lambda w: box_layout.sim_minutes(BOX, int(w.box_nl), 0),
+            mem_mb=BOX["resources"]["mem_mb"],
+        group:
+            "box_sim"
+        shell:
+            "granpipe box init --params {params.json:q} --N-l {wildcards.box_nl}"
+            " --init {wildcards.box_init} --replica {wildcards.box_rep}"
+            " --out {output:q} > {log:q} 2>&1"
+
+    rule box_runs:
+        """One part of a point: ramp and transient (part 0), measured periods, recording."""
+        input:
+            unpack(
+                lambda w: {
+                    k: out("box", v) for k, v in box_layout.run_inputs(BOX, w).items()
+                }
+            ),
+        output:
+            out(
+                "box",
+                "runs",
+                "N_l={box_nl},Gamma={box_gamma},init={box_init}",
+                "replica_{box_rep}.part_{box_part}.nc",
+            ),
+        params:
+            json=lambda w: as_json(box_layout.runs_params(BOX, int(w.box_part))),
+            previous=lambda w, input: (
+                f"--previous {input.previous}" if "previous" in input.keys() else ""
+            ),
+        conda:
+            "../envs/granpipe.yaml"
+        log:
+            log_path(
+                "box",
+                "runs",
+                "N_l={box_nl},Gamma={box_gamma},init={box_init}",
+                "replica_{box_rep}.part_{box_part}.log",
+            ),
+        threads: 1
+        resources:
+            runtime=lambda w: box_layout.sim_minutes(BOX, int(w.box_nl), int(w.box_part)),
+            mem_mb=BOX["resources"]["mem_mb"],
+        group:
+            "box_sim"
+        shell:
+            "granpipe box runs --params {params.json:q} --N-l {wildcards.box_nl}"
+            " --Gamma {wildcards.box_gamma} --init {wildcards.box_init}"
+            " --replica {wildcards.box_rep} --part {wildcards.box_part}"
+            " --init-file {input.init:q} {params.previous} --out {output:q} > {log:q} 2>&1"
+
+    rule box_ensemble:
+        """Detection (s_c, s_b, detachment), T_g, slips and ψ6 of one point."""
+        input:
+            runs=lambda w: [
+                out("box", f)
+                for f in box_layout.point_run_files(
+                    BOX, int(w.box_nl), float(w.box_gamma), w.box_init
+                )
+            ],
+        output:
+            out("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init}.nc"),
+        params:
+            json=lambda w: as_json(box_layout.ensemble_params(BOX)),
+        conda:
+            "../envs/granpipe.yaml"
+        log:
+            log_path("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init}.log"),
+        threads: 1
+        resources:
+            runtime=10,
+            mem_mb=2000,
+        shell:
+            "granpipe box ensemble --params {params.json:q} --out {output:q} {input.runs:q}"
+            " > {log:q} 2>&1"
+
+    rule box_fits:
+        """Thresholds in Γ, segmented T_g* regions, Arrhenius barriers; summary.csv."""
+        input:
+            BOX_ENSEMBLE_FILES,
+        output:
+            [out("box", f) for f in box_layout.fit_files()],
+        params:
+            json=lambda w: as_json(box_layout.fits_params(BOX)),
+            outdir=lambda w: out("box", "fits"),
+        conda:
+            "../envs/granpipe.yaml"
+        log:
+            log_path("box", "fits.log"),
+        threads: 1
+        resources:
+            runtime=15,
+            mem_mb=2000,
+        shell:
+            "granpipe box fits --params {params.json:q} --out-dir {params.outdir:q}"
+            " {input:q} > {log:q} 2>&1"
+
+    rule box_figures:
+        """Figures 1, 3, 4 and 5 of the paper (PNG for the report, PDF beside them)."""
+        input:
+            fits=rules.box_fits.output,
+            init=BOX_INIT_FILES,
+            ensemble=BOX_ENSEMBLE_FILES,
+        output:
+            fig1=report(
+                out("box", "figures", "fig1_snapshots.png"),
+                category="box",
+                caption="../report/box_fig1.rst",
+            ),
+            fig3=report(
+                out("box", "figures", "fig3_phase_diagram.png"),
+                category="box",
+                caption="../report/box_fig3.rst",
+            ),
+            fig4=report(
+                out("box", "figures", "fig4_granular_temperature.png"),
+                category="box",
+                caption="../report/box_fig4.rst",
+            ),
+            fig5=report(
+                out("box", "figures", "fig5_slip_probability.png"),
+                category="box",
+                caption="../report/box_fig5.rst",
+            ),
+            pdf=[out("box", f) for f in box_layout.figure_files("pdf")],
+        params:
+            json=lambda w: as_json(box_layout.figures_params(BOX)),
+            fitsdir=lambda w: out("box", "fits"),
+            outdir=lambda w: out("box", "figures"),
+            inits=lambda w, input: " ".join(f"--init-file {f}" for f in input.init),
+        conda:
+            "../envs/granpipe.yaml"
+        log:
+            log_path("box", "figures.log"),
+        threads: 1
+        resources:
+            runtime=10,
+            mem_mb=2000,
+        shell:
+            "granpipe box figures --params {params.json:q} --fits-dir {params.fitsdir:q}"
+            " --out-dir {params.outdir:q} {params.inits} {input.ensemble:q} > {log:q} 2>&1"
+
+    register_targets(
+        "box",
+        lambda: [
+            *rules.box_figures.output,
+            out("box", "fits", "summary.csv"),
+        ],
+    )

@@ -45,6 +45,15 @@ __all__ = [
     "FITS",
     "fit_files",
     "POINT_RE",
+    "init_params",
+    "runs_params",
+    "ensemble_params",
+    "fits_params",
+    "figures_params",
+    "run_steps",
+    "n_disks",
+    "sim_minutes",
+    "run_inputs",
 ]
 
 INITS = ("crystal", "random")
@@ -171,3 +180,92 @@ def fit_files() -> list[str]:
 
 def figure_files(kind: str = "png") -> list[str]:
     return [f"figures/{stem}.{kind}" for stem in FIGURES.values()]
+
+
+# ---------------------------------------------------- config subsets of each stage
+def init_params(section: Mapping) -> dict:
+    """Config subset of the init stage: physics and preparation."""
+    return {"physics": dict(section["physics"]), "init": dict(section["init"])}
+
+
+def runs_params(section: Mapping, part: int) -> dict:
+    """The exact config subset a run part depends on (what the rule passes as --params).
+
+    ``measured_periods`` is replaced by the measured periods of this part, so that raising
+    ``measured_periods`` by whole parts leaves the existing parts untouched.
+    """
+    proto = {k: v for k, v in section["protocol"].items() if k != "measured_periods"}
+    periods = part_periods(section, part)
+    return {
+        **init_params(section),
+        "protocol": proto,
+        "part_periods": [periods.start, periods.stop],
+    }
+
+
+def ensemble_params(section: Mapping) -> dict:
+    """Config subset of the ensemble stage: detection, slips, order and the box width."""
+    return {
+        "Lx": float(section["physics"]["Lx"]),
+        "detection": dict(section["detection"]),
+        "slips": dict(section["slips"]),
+        "order": dict(section["order"]),
+    }
+
+
+def fits_params(section: Mapping) -> dict:
+    """Config subset of the fits stage (criteria and fit settings)."""
+    return {"detection": dict(section["detection"]), "fits": dict(section["fits"])}
+
+
+def figures_params(section: Mapping) -> dict:
+    """Config subset of the figures stage."""
+    return {
+        "Lx": float(section["physics"]["Lx"]),
+        "order": dict(section["order"]),
+        "fits": dict(section["fits"]),
+    }
+
+
+def run_steps(section: Mapping, part: int) -> int:
+    """Time steps of one run part (transient included in part 0), for runtime requests."""
+    import math as _m
+
+    physics, proto = section["physics"], section["protocol"]
+    m_eff = 0.5
+    w2 = float(physics["kappa_n"]) / m_eff - float(physics["gamma_n"]) ** 2 / 4.0
+    dt = _m.pi / _m.sqrt(w2) / float(physics["steps_per_contact"])
+    per_period = 2.0 * _m.pi / float(physics["omega"]) / dt
+    periods = len(part_periods(section, part))
+    if part == 0:
+        periods += int(proto["transient_periods"]) + 0.25
+    return int(per_period * periods)
+
+
+def n_disks(section: Mapping, n_l: int) -> int:
+    """N = N_l Lx."""
+    return int(round(int(n_l) * float(section["physics"]["Lx"])))
+
+
+def sim_minutes(section: Mapping, n_l: int, part: int) -> int:
+    """Runtime request of one simulation job: twice the cost model, at least ``min_runtime``.
+
+    Cost model: N × steps × ``resources.ns_per_particle_step``.
+    """
+    res = section["resources"]
+    seconds = n_disks(section, n_l) * run_steps(section, part) * res["ns_per_particle_step"] * 1e-9
+    return max(int(res["min_runtime"]), int(2 * seconds / 60) + 1)
+
+
+def run_inputs(section: Mapping, wildcards) -> dict[str, str]:
+    """Inputs of a run part (relative paths): the initial state, and the previous part."""
+    n_l, init, rep, part = (
+        int(wildcards.box_nl),
+        wildcards.box_init,
+        int(wildcards.box_rep),
+        int(wildcards.box_part),
+    )
+    files = {"init": init_file(n_l, init, rep)}
+    if part > 0:
+        files["previous"] = run_file(n_l, float(wildcards.box_gamma), init, rep, part - 1)
+    return files

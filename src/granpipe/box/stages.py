@@ -27,8 +27,13 @@ from ..errors import SimulationError
 from ..io import read_dataset, write_dataset
 from ..seeds import replica_rng, replica_seed
 from . import layout, model, prepare, protocol
+from .layout import ensemble_params, figures_params, fits_params, runs_params
 
 __all__ = [
+    "runs_params",
+    "ensemble_params",
+    "fits_params",
+    "figures_params",
     "seed_physics",
     "init_stage",
     "runs_stage",
@@ -134,24 +139,6 @@ def init_stage(
 
 
 # --------------------------------------------------------------------------- runs
-def runs_params(section: Mapping, part: int) -> dict:
-    """The exact config subset a run part depends on (what the rule passes as --params).
-
-    ``measured_periods`` is replaced by the number of periods of this part, so that raising
-    ``measured_periods`` by whole parts leaves the existing parts untouched.
-    """
-    proto = {k: v for k, v in section["protocol"].items() if k != "measured_periods"}
-    return {
-        "physics": dict(section["physics"]),
-        "init": dict(section["init"]),
-        "protocol": proto,
-        "part_periods": [
-            layout.part_periods(section, part).start,
-            layout.part_periods(section, part).stop,
-        ],
-    }
-
-
 def _engine_vars(arrays: Mapping[str, np.ndarray]) -> dict:
     out = {}
     for key, val in arrays.items():
@@ -313,4 +300,172 @@ def read_point_runs(files: Sequence[str | Path]) -> dict[int, list[xr.Dataset]]:
     return by_rep
 
 
-_ = (math, model)  # used by later stages
+# ----------------------------------------------------------------------- ensemble
+def ensemble_stage(
+    params: Mapping,
+    run_files: Sequence[str | Path],
+    out: str | Path,
+    log: Callable[[str], None] | None = log_to_stderr,
+) -> Path:
+    """Measures of one point from all its run files (every replica, every part)."""
+    from . import measures
+
+    by_rep = read_point_runs(run_files)
+    runs = {r: measures.concat_parts(parts) for r, parts in by_rep.items()}
+    ds = measures.point_dataset(
+        runs, params["detection"], params["slips"], params["order"], float(params["Lx"])
+    )
+    seeds = sorted({int(p[0].attrs["seed"]) for p in by_rep.values()})
+    if log:
+        log(
+            f"ensemble {ds.attrs['point']}: s_c = {float(ds.s_c):.3f}, s_b = {float(ds.s_b):.4f}, "
+            f"detachment = {float(ds.detachment_fraction):.3f}, T_g* = {float(ds.T_g):.3e}, "
+            f"p_s = {float(ds.p_s):.3e} ({int(ds.n_slips)}/{int(ds.n_trials)}), "
+            f"psi6 start = {float(ds.psi6_start):.3f}, "
+            f"{ds.attrs['ns_per_particle_step']:.0f} ns per particle-step"
+        )
+    return write_dataset(ds, out, config_subset=params, seeds=seeds)
+
+
+# --------------------------------------------------------------------------- fits
+def fit_n_l(fits_cfg: Mapping, n_ls) -> int:
+    """The linear density whose fits the figures draw (``fits.N_l`` or the largest)."""
+    n_ls = sorted({int(n) for n in n_ls})
+    want = fits_cfg.get("N_l")
+    return int(want) if want is not None and int(want) in n_ls else n_ls[-1]
+
+
+def fits_stage(
+    params: Mapping,
+    ensemble_files: Sequence[str | Path],
+    out_dir: str | Path,
+    log: Callable[[str], None] | None = log_to_stderr,
+) -> list[Path]:
+    """Thresholds, T_g* regions and Arrhenius barriers; ``fits/*.nc`` and ``summary.csv``."""
+    import warnings
+
+    from ..analysis.summary import write_summary
+    from . import fitting
+
+    out_dir = Path(out_dir)
+    table = fitting.points_table(ensemble_files)
+    ths = fitting.thresholds_table(table, params["detection"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        tfits = fitting.temperature_fits(table, params["fits"])
+        sfits = fitting.slip_fits(table, tfits, params["fits"])
+    datasets = fitting.fits_datasets(table, ths, tfits, sfits)
+    written = []
+    for name, ds in datasets.items():
+        written.append(write_dataset(ds, out_dir / f"{name}.nc", config_subset=params, study="box"))
+    rows = fitting.summary_rows(table, ths, tfits, sfits)
+    written.append(write_summary(rows, out_dir / "summary.csv", merge=False))
+    if log:
+        for r in rows:
+            log(
+                f"{r['quantity']} = {r['value']:.4g} [{r.get('ci_low', math.nan):.4g}, "
+                f"{r.get('ci_high', math.nan):.4g}]"
+                + (f" (paper {r['paper_value']})" if r.get("paper_value") is not None else "")
+            )
+    return written
+
+
+def load_fits(fits_dir: str | Path):
+    """(points, thresholds, temperature, slips) DataFrames from ``fits/*.nc``."""
+    import pandas as pd
+
+    fits_dir = Path(fits_dir)
+    phase = read_dataset(fits_dir / "phase_diagram.nc")
+    pcols = [d for d in phase.data_vars if phase[d].dims == ("point",)]
+    points = pd.DataFrame({c: phase[c].values for c in pcols})
+    points["init"] = phase["init"].values.astype(str)
+    points["point"] = phase["point"].values.astype(str)
+    tcols = [d for d in phase.data_vars if phase[d].dims == ("threshold",)]
+    ths = pd.DataFrame({c.removeprefix("threshold_"): phase[c].values for c in tcols})
+    for c in ("init", "criterion", "status"):
+        ths[c] = phase[f"threshold_{c}"].values.astype(str)
+
+    def rows(name):
+        ds = read_dataset(fits_dir / f"{name}.nc")
+        df = pd.DataFrame({c: ds[c].values for c in ("value", "se", "ci_low", "ci_high", "N_l")})
+        for c in ("init", "name"):
+            df[c] = ds[c].values.astype(str)
+        df["index"] = ds["index"].values.astype(int)
+        df["N_l"] = df["N_l"].astype(int)
+        return df
+
+    return points, ths, rows("temperature"), rows("slips")
+
+
+# ------------------------------------------------------------------------- figures
+def figures_stage(
+    params: Mapping,
+    fits_dir: str | Path,
+    init_files: Sequence[str | Path],
+    ensemble_files: Sequence[str | Path],
+    out_dir: str | Path,
+    log: Callable[[str], None] | None = log_to_stderr,
+) -> list[Path]:
+    """Figures 1, 3, 4, 5 (PNG and PDF)."""
+    from ..figures import box as figs
+
+    out_dir = Path(out_dir)
+    points, ths, temp, slips = load_fits(fits_dir)
+    n_fit = fit_n_l(params["fits"], points["N_l"])
+    written = []
+    # Fig. 1: initial states of the largest N_l (replica 0), then the same starts at the
+    # beginning of the measurement at the largest Γ without convection.
+    n_big = int(points["N_l"].max())
+    inits = {}
+    for f in init_files:
+        ds = read_dataset(f)
+        if int(ds.attrs["N_l"]) == n_big and int(ds.attrs["replica"]) == 0:
+            inits[ds.attrs["init"]] = ds
+    panels = []
+    for kind in ("crystal", "random"):
+        if kind in inits:
+            ds = inits[kind]
+            panels.append(
+                {
+                    "title": f"{kind} start, N_l = {n_big}\nbulk |ψ6| = "
+                    f"{float(ds.attrs['bulk_psi6']):.3f}",
+                    "positions": ds["positions"].values,
+                    "order": ds["order"].values,
+                }
+            )
+    by_point = {Path(f).stem: f for f in ensemble_files}
+    for kind in ("crystal", "random"):
+        sel = points[(points["init"] == kind) & (points["N_l"] == n_big)]
+        calm = sel[sel["convection"] == 0]
+        if sel.empty:
+            continue
+        row = (calm if not calm.empty else sel).sort_values("Gamma").iloc[-1]
+        f = by_point.get(row["point"])
+        if f is None:
+            continue
+        ds = read_dataset(f)
+        panels.append(
+            {
+                "title": f"{kind}, Γ = {row['Gamma']:g}: measurement start\nbulk |ψ6| = "
+                f"{float(ds['psi6_start']):.3f}",
+                "positions": ds["positions_start"].values,
+                "order": ds["order_start"].values,
+                "z_plate": float(np.min(ds["positions_start"].values[:, 1])) - 0.5,
+            }
+        )
+    if panels:
+        fig = figs.fig1_snapshots(panels, float(params["Lx"]))
+        written += figs.save(fig, out_dir, layout.FIGURES[1])
+    written += figs.save(figs.fig3_phase_diagram(points, ths), out_dir, layout.FIGURES[3])
+    written += figs.save(
+        figs.fig4_granular_temperature(points, temp, n_fit), out_dir, layout.FIGURES[4]
+    )
+    written += figs.save(
+        figs.fig5_slip_probability(points, slips, temp, n_fit), out_dir, layout.FIGURES[5]
+    )
+    if log:
+        log("figures: " + ", ".join(str(p) for p in written))
+    return written
+
+
+_ = model

@@ -1,0 +1,93 @@
+"""``granpipe box <stage>``: the vibrated-box study's stages (SPEC §3).
+
+Each command takes ``--params JSON`` (the exact config subset its rule depends on, stored
+as the output's ``config_subset``) and input/output paths; progress goes to stderr. The
+functions behind the commands live in :mod:`granpipe.box.stages`.
+"""
+
+from __future__ import annotations
+
+import click
+
+from ..cli import params_option
+
+__all__ = ["cli"]
+
+
+@click.group("box")
+def cli():
+    """Vibrated box (Fortini & Huang 2015): init, runs, ensemble, fits, figures."""
+
+
+@cli.command("init")
+@params_option
+@click.option("--N-l", "n_l", type=int, required=True, help="linear density N_l = N/Lx [1/σ]")
+@click.option(
+    "--init", "kind", type=click.Choice(["crystal", "random"]), required=True, help="start"
+)
+@click.option("--replica", type=int, default=0, show_default=True)
+@click.option("--out", type=click.Path(dir_okay=False), required=True)
+def init_cmd(params, n_l, kind, replica, out):
+    """Prepare a settled crystal or random initial state (params: physics, init)."""
+    from .stages import init_stage
+
+    init_stage(params, n_l, kind, replica, out)
+
+
+@cli.command("runs")
+@params_option
+@click.option("--N-l", "n_l", type=int, required=True)
+@click.option("--Gamma", "gamma", type=float, required=True, help="Γ = Aω²/g")
+@click.option("--init", "kind", type=click.Choice(["crystal", "random"]), required=True)
+@click.option("--replica", type=int, default=0, show_default=True)
+@click.option("--part", type=int, default=0, show_default=True)
+@click.option("--init-file", type=click.Path(exists=True, dir_okay=False), required=True)
+@click.option(
+    "--previous",
+    type=click.Path(exists=True, dir_okay=False),
+    default=None,
+    help="run file of the previous part (parts > 0)",
+)
+@click.option("--out", type=click.Path(dir_okay=False), required=True)
+def runs_cmd(params, n_l, gamma, kind, replica, part, init_file, previous, out):
+    """Run one part of a point (params: physics, init, protocol, part_periods)."""
+    from .stages import runs_stage
+
+    runs_stage(params, n_l, gamma, kind, replica, part, init_file, out, previous=previous)
+
+
+@cli.command("ensemble")
+@params_option
+@click.option("--out", type=click.Path(dir_okay=False), required=True)
+@click.argument("run_files", nargs=-1, required=True, type=click.Path(exists=True))
+def ensemble_cmd(params, out, run_files):
+    """Measures of one point from its run files (params: Lx, detection, slips, order)."""
+    from .stages import ensemble_stage
+
+    ensemble_stage(params, run_files, out)
+
+
+@cli.command("fits")
+@params_option
+@click.option("--out-dir", type=click.Path(file_okay=False), required=True)
+@click.argument("ensemble_files", nargs=-1, required=True, type=click.Path(exists=True))
+def fits_cmd(params, out_dir, ensemble_files):
+    """Thresholds, T_g* regions, Arrhenius barriers, summary.csv (params: detection, fits)."""
+    from .stages import fits_stage
+
+    fits_stage(params, ensemble_files, out_dir)
+
+
+@cli.command("figures")
+@params_option
+@click.option("--fits-dir", type=click.Path(exists=True, file_okay=False), required=True)
+@click.option("--out-dir", type=click.Path(file_okay=False), required=True)
+@click.option(
+    "--init-file", "init_files", multiple=True, type=click.Path(exists=True), required=True
+)
+@click.argument("ensemble_files", nargs=-1, required=True, type=click.Path(exists=True))
+def figures_cmd(params, fits_dir, out_dir, init_files, ensemble_files):
+    """Figures 1, 3, 4, 5 as PNG and PDF (params: Lx, order, fits)."""
+    from .stages import figures_stage
+
+    figures_stage(params, fits_dir, init_files, ensemble_files, out_dir)

@@ -1,0 +1,378 @@
+"""Fits of the box study: phase-diagram thresholds, T_g* regions, Arrhenius barriers.
+
+Glue between the per-point ensemble files and :mod:`granpipe.analysis.thresholds`,
+:mod:`granpipe.analysis.regression` and :mod:`granpipe.analysis.summary`:
+
+* :func:`points_table` — one row per point (N_l, Γ, init) with its measures.
+* :func:`thresholds` — per (N_l, init): Γ of bouncing (s_b > σ/30, Appendix B with
+  SPEC's correction), of detachment (the bed off the plate for more than the set
+  fraction of the cycle; SPEC §3 (iii)) and of convection (s_c > σ); linear interpolation
+  of log s between the bracketing grid points, which are reported.
+* :func:`temperature_fits` — per (N_l, init): continuous segmented regression of
+  ln T_g* on ln K_m with ``breakpoints_random`` (A | B) or ``breakpoints_crystal``
+  (A1 | A2 | B) breakpoints (Fig. 4), breakpoints as K_m with profile-likelihood CIs.
+* :func:`slip_fits` — per (N_l, init): Arrhenius fits ``p_s ∝ exp(−E_b/K_m)`` over the
+  whole range and in each T_g* region (Fig. 5); regions without slips give NaN with
+  zero-count upper bounds.
+* :func:`summary_rows` — rows of ``summary.csv`` beside the paper's numbers.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import xarray as xr
+
+from ..analysis import regression, thresholds
+from ..io import read_dataset
+
+__all__ = [
+    "points_table",
+    "thresholds_table",
+    "temperature_fits",
+    "slip_fits",
+    "summary_rows",
+    "REGION_NAMES",
+    "PAPER",
+]
+
+REGION_NAMES = {0: ["all"], 1: ["A", "B"], 2: ["A1", "A2", "B"]}
+
+#: The paper's numbers (Sec. IV-V): T_g slope change for random starts at K_m ≈ 3.3
+#: (the convection onset), E_b = 7 ± 1 (random, whole range), 130 ± 20 (crystal A2),
+#: 7 ± 1 (crystal B); comoving → bouncing "slightly above" Γ = 1.
+PAPER = {
+    "K_m_break_random": 3.3,
+    "E_b_random_all": 7.0,
+    "E_b_crystal_A2": 130.0,
+    "E_b_crystal_B": 7.0,
+    "Gamma_bouncing": 1.0,
+}
+
+_COLUMNS = (
+    "s_c", "s_b", "s_b_printed", "detachment_fraction", "max_gap", "T_g", "T_g_sem", "p_s",
+    "p_s_sem", "n_slips", "n_trials", "psi6_start", "psi6_end", "launch_ratio",
+    "convection", "bouncing", "detached", "crystal_intact",
+)  # fmt: skip
+
+
+def points_table(files: Sequence[str | Path]) -> pd.DataFrame:
+    """One row per ensemble file: N_l, N, Gamma, K_m, init, the measures and the cost."""
+    rows = []
+    for f in files:
+        ds = read_dataset(f)
+        row = {
+            "point": ds.attrs["point"],
+            "N_l": int(ds.attrs["N_l"]),
+            "N": int(ds.attrs["N"]),
+            "Gamma": float(ds.attrs["Gamma"]),
+            "K_m": float(ds.attrs["K_m"]),
+            "init": str(ds.attrs["init"]),
+            "replicas": int(ds.attrs["replicas"]),
+            "measured_periods": int(ds.attrs["measured_periods"]),
+            "wall_seconds": float(ds.attrs["wall_seconds"]),
+            "steps": int(ds.attrs["steps"]),
+            "ns_per_particle_step": float(ds.attrs["ns_per_particle_step"]),
+        }
+        for c in _COLUMNS:
+            row[c] = float(ds[c].values)
+        rows.append(row)
+    table = pd.DataFrame(rows)
+    return table.sort_values(["init", "N_l", "Gamma"], kind="stable").reset_index(drop=True)
+
+
+def _groups(table: pd.DataFrame):
+    for (init, n_l), g in table.groupby(["init", "N_l"], sort=True):
+        yield init, int(n_l), g.sort_values("Gamma")
+
+
+CRITERIA = {
+    # name: (column, config key, interpolation scale)
+    "bouncing": ("s_b", "bouncing_s_b", "log"),
+    "detachment": ("detachment_fraction", "detachment_fraction", "linear"),
+    "convection": ("s_c", "convection_s_c", "log"),
+}
+
+
+def thresholds_table(table: pd.DataFrame, detection: Mapping) -> pd.DataFrame:
+    """Thresholds in Γ per (init, N_l, criterion), with the bracketing grid points."""
+    rows = []
+    for init, n_l, g in _groups(table):
+        for name, (col, key, scale) in CRITERIA.items():
+            crit = float(detection[key])
+            values = g[col].to_numpy()
+            if scale == "log":
+                # a measure at exactly zero (a rigid bed) sits below any positive criterion
+                values = np.where(values > 0, values, crit * 1e-12)
+            th = thresholds.threshold_crossing(g["Gamma"].to_numpy(), values, crit, scale=scale)
+            rows.append(
+                {
+                    "init": init,
+                    "N_l": n_l,
+                    "criterion": name,
+                    "measure": col,
+                    "level": crit,
+                    "Gamma": th.value,
+                    "K_m": th.value**2 if math.isfinite(th.value) else math.nan,
+                    "Gamma_low": th.low,
+                    "Gamma_high": th.high,
+                    "status": th.status,
+                    "n_crossings": th.n_crossings,
+                    "n_points": len(g),
+                }
+            )
+    return pd.DataFrame(rows)
+
+
+def temperature_fits(table: pd.DataFrame, fits_cfg: Mapping) -> dict:
+    """Segmented fits of ln T_g* vs ln K_m per (init, N_l): {(init, N_l): dict or None}."""
+    out = {}
+    level = float(fits_cfg["confidence"])
+    for init, n_l, g in _groups(table):
+        k = int(fits_cfg[f"breakpoints_{init}"])
+        ok = np.isfinite(g["T_g"]) & (g["T_g"] > 0)
+        g = g[ok]
+        sem = g["T_g_sem"].to_numpy()
+        sem = sem if np.all(np.isfinite(sem) & (sem > 0)) else None
+        try:
+            fit, bic = regression.loglog_segmented(
+                g["K_m"].to_numpy(),
+                g["T_g"].to_numpy(),
+                k,
+                T_g_sem=sem,
+                level=level,
+            )
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            out[(init, n_l)] = {"error": str(exc), "n_points": int(len(g))}
+            continue
+        bp, bp_ci = fit.exp_breakpoints()
+        out[(init, n_l)] = {
+            "fit": fit,
+            "n_breakpoints": k,
+            "breakpoints_K_m": np.atleast_1d(bp),
+            "breakpoints_K_m_ci": np.atleast_2d(bp_ci) if k else np.zeros((0, 2)),
+            "breakpoints_K_m_se": np.atleast_1d(np.exp(fit.breakpoints) * fit.breakpoint_se),
+            "slopes": fit.slopes,
+            "slope_se": fit.slope_se,
+            "slope_ci": fit.slope_ci,
+            "bic": bic,
+            "n_points": int(fit.n),
+            "regions": REGION_NAMES[k],
+        }
+    return out
+
+
+def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
+    """Arrhenius fits per (init, N_l): {(init, N_l): {region: ArrheniusFit}} incl. "all"."""
+    level = float(fits_cfg["confidence"])
+    out = {}
+    for init, n_l, g in _groups(table):
+        kw = {
+            "p_s": g["p_s"].to_numpy(),
+            "n_slips": g["n_slips"].to_numpy(),
+            "n_trials": g["n_trials"].to_numpy(),
+            "p_s_sem": g["p_s_sem"].to_numpy(),
+        }
+        keep = np.isfinite(kw["p_s"]) & (kw["n_trials"] > 0)
+        K = g["K_m"].to_numpy()[keep]
+        kw = {k: v[keep] for k, v in kw.items()}
+        sem = kw.pop("p_s_sem")
+        # the scatter over periods is the honest error where slips happened; counts otherwise
+        kw["p_s_sem"] = np.where(np.isfinite(sem) & (sem > 0), sem, np.nan)
+        if np.isnan(kw["p_s_sem"]).any():
+            kw.pop("p_s_sem")
+        fits = {}
+        try:
+            fits["all"] = regression.arrhenius_fit(K, level=level, **kw)
+        except ValueError:
+            pass
+        tf = tfits.get((init, n_l)) or {}
+        if "fit" in tf and tf["n_breakpoints"] > 0:
+            try:
+                fits.update(
+                    regression.arrhenius_by_region(
+                        K, tf["breakpoints_K_m"], tf["regions"], level=level, **kw
+                    )
+                )
+            except ValueError:
+                pass
+        out[(init, n_l)] = fits
+    return out
+
+
+def _fmt_q(name: str, init: str, n_l: int) -> str:
+    return f"{name}[N_l={n_l},init={init}]"
+
+
+def summary_rows(
+    table: pd.DataFrame, ths: pd.DataFrame, tfits: Mapping, sfits: Mapping
+) -> list[dict]:
+    """Rows of ``summary.csv`` (DESIGN columns); quantities name N_l and init."""
+    rows = []
+    for r in ths.itertuples(index=False):
+        th = thresholds.Threshold(
+            r.Gamma, r.Gamma_low, r.Gamma_high, status=r.status, n_crossings=r.n_crossings
+        )
+        paper = PAPER["Gamma_bouncing"] if r.criterion in ("bouncing", "detachment") else None
+        if r.criterion == "convection" and r.init == "random":
+            paper = math.sqrt(PAPER["K_m_break_random"])
+        rows.append(
+            th.summary_row(
+                "box", _fmt_q(f"Gamma_{r.criterion}", r.init, r.N_l), paper, "1", r.n_points
+            )
+        )
+    for (init, n_l), tf in tfits.items():
+        if "fit" not in tf:
+            continue
+        for i, name in enumerate(["K_m_break_1", "K_m_break_2"][: tf["n_breakpoints"]]):
+            paper = PAPER["K_m_break_random"] if (init == "random" and i == 0) else None
+            lo, hi = tf["breakpoints_K_m_ci"][i]
+            rows.append(
+                {
+                    "study": "box",
+                    "quantity": _fmt_q(name, init, n_l),
+                    "value": tf["breakpoints_K_m"][i],
+                    "unit": "1",
+                    "fit_error": tf["breakpoints_K_m_se"][i],
+                    "ci_low": lo,
+                    "ci_high": hi,
+                    "n": tf["n_points"],
+                    "paper_value": paper,
+                }
+            )
+        for i, region in enumerate(tf["regions"]):
+            lo, hi = tf["slope_ci"][i]
+            rows.append(
+                {
+                    "study": "box",
+                    "quantity": _fmt_q(f"T_g_slope_{region}", init, n_l),
+                    "value": tf["slopes"][i],
+                    "unit": "1",
+                    "fit_error": tf["slope_se"][i],
+                    "ci_low": lo,
+                    "ci_high": hi,
+                    "n": tf["n_points"],
+                }
+            )
+    for (init, n_l), fits in sfits.items():
+        for region, af in fits.items():
+            paper = PAPER.get(f"E_b_{init}_{region}")
+            rows.append(
+                {
+                    "study": "box",
+                    "quantity": _fmt_q(f"E_b_{region}", init, n_l),
+                    "value": af.E_b,
+                    "unit": "1",
+                    "fit_error": af.E_b_se,
+                    "ci_low": af.E_b_ci[0],
+                    "ci_high": af.E_b_ci[1],
+                    "n": af.n_points,
+                    "paper_value": paper,
+                }
+            )
+    for init, n_l, g in _groups(table):
+        rows.append(
+            {
+                "study": "box",
+                "quantity": _fmt_q("cost_ns_per_particle_step", init, n_l),
+                "value": float(1e9 * g["wall_seconds"].sum() / max((g["steps"] * g["N"]).sum(), 1)),
+                "unit": "ns",
+                "n": len(g),
+            }
+        )
+    return rows
+
+
+def fits_datasets(
+    table: pd.DataFrame, ths: pd.DataFrame, tfits: Mapping, sfits: Mapping
+) -> dict[str, xr.Dataset]:
+    """Labelled datasets for ``fits/phase_diagram.nc``, ``temperature.nc``, ``slips.nc``."""
+
+    def lab(units, long_name):
+        return {"units": units, "long_name": long_name}
+
+    pts = xr.Dataset(
+        {
+            c: ("point", table[c].to_numpy(dtype=float), lab("1", c))
+            for c in table.columns
+            if c not in ("point", "init")
+        },
+        coords={
+            "point": ("point", table["point"].to_numpy(dtype=str), lab("1", "parameter point")),
+            "init": ("point", table["init"].to_numpy(dtype=str), lab("1", "initial state")),
+        },
+    )
+    for c, u in (("s_c", "sigma"), ("s_b", "sigma"), ("T_g", "m*g*sigma")):
+        pts[c].attrs["units"] = u
+    th = xr.Dataset(
+        {
+            f"threshold_{c}": (
+                "threshold",
+                ths[c].to_numpy(dtype=float),
+                lab("1", f"threshold {c}"),
+            )
+            for c in ("N_l", "level", "Gamma", "K_m", "Gamma_low", "Gamma_high", "n_crossings")
+        },
+        coords={
+            "threshold": ("threshold", np.arange(len(ths)), lab("1", "threshold index")),
+            **{
+                f"threshold_{c}": ("threshold", ths[c].to_numpy(dtype=str), lab("1", c))
+                for c in ("init", "criterion", "status")
+            },
+        },
+    )
+    th["threshold_N_l"].attrs["units"] = "1/sigma"
+    phase = xr.merge([pts, th])
+    trows = []
+    for (init, n_l), tf in tfits.items():
+        if "fit" not in tf:
+            continue
+        for i in range(tf["n_breakpoints"]):
+            trows.append(
+                (init, n_l, "breakpoint", i, tf["breakpoints_K_m"][i],
+                 tf["breakpoints_K_m_se"][i], *tf["breakpoints_K_m_ci"][i])
+            )  # fmt: skip
+        for i in range(len(tf["slopes"])):
+            trows.append(
+                (init, n_l, f"slope_{tf['regions'][i]}", i, tf["slopes"][i], tf["slope_se"][i],
+                 *tf["slope_ci"][i])
+            )  # fmt: skip
+        trows.append((init, n_l, "intercept", 0, tf["fit"].intercept, math.nan, math.nan, math.nan))
+    temp = _rows_dataset(trows, "temperature fit of ln T_g* on ln K_m")
+    srows = []
+    for (init, n_l), fits in sfits.items():
+        for region, af in fits.items():
+            srows.append(
+                (init, n_l, f"E_b_{region}", 0, af.E_b, af.E_b_se, af.E_b_ci[0], af.E_b_ci[1])
+            )
+            srows.append((init, n_l, f"log_A_{region}", 0, af.log_A, af.log_A_se, np.nan, np.nan))
+    slips = _rows_dataset(srows, "Arrhenius fit p_s = A exp(-E_b/K_m)")
+    return {"phase_diagram": phase, "temperature": temp, "slips": slips}
+
+
+def _rows_dataset(rows, what: str) -> xr.Dataset:
+    cols = ["init", "N_l", "name", "index", "value", "se", "ci_low", "ci_high"]
+    df = pd.DataFrame(rows, columns=cols)
+
+    def lab(units, long_name):
+        return {"units": units, "long_name": long_name}
+
+    return xr.Dataset(
+        {
+            "value": ("row", df["value"].to_numpy(float), lab("1", what)),
+            "se": ("row", df["se"].to_numpy(float), lab("1", "standard error")),
+            "ci_low": ("row", df["ci_low"].to_numpy(float), lab("1", "CI lower bound")),
+            "ci_high": ("row", df["ci_high"].to_numpy(float), lab("1", "CI upper bound")),
+            "N_l": ("row", df["N_l"].to_numpy(float), lab("1/sigma", "linear density")),
+        },
+        coords={
+            "row": ("row", np.arange(len(df)), lab("1", "row")),
+            "init": ("row", df["init"].to_numpy(str), lab("1", "initial state")),
+            "name": ("row", df["name"].to_numpy(str), lab("1", "fitted quantity")),
+            "index": ("row", df["index"].to_numpy(int), lab("1", "index within the quantity")),
+        },
+    )

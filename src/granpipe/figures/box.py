@@ -1,0 +1,296 @@
+"""Figures of the box study (Fortini & Huang 2015, Figs. 1, 3, 4, 5): data in, Figure out.
+
+* :func:`fig1_snapshots` — disks coloured by local order (hexagonal, square, disordered).
+* :func:`fig3_phase_diagram` — thresholds in Γ against N_l (bouncing by s_b, detachment,
+  convection by s_c), both starts, K_m = Γ² on the right axis; the grid points behind.
+* :func:`fig4_granular_temperature` — T_g* against K_m (log–log), one colour per N_l,
+  segmented fits and their breakpoints (dashed) with intervals (shaded).
+* :func:`fig5_slip_probability` — p_s against 1/K_m (log), Arrhenius fits per region,
+  points without slips as upper bounds.
+
+Inputs are pandas tables built from the fits files (:func:`granpipe.box.stages.load_fits`)
+and snapshots (positions + order codes). :func:`save` writes PNG and PDF atomically.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from matplotlib.collections import EllipseCollection  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+
+from ..io import atomic_path  # noqa: E402
+
+__all__ = [
+    "ORDER_COLORS",
+    "fig1_snapshots",
+    "fig3_phase_diagram",
+    "fig4_granular_temperature",
+    "fig5_slip_probability",
+    "segmented_curve",
+    "save",
+]
+
+#: Fig. 1 colours: disordered, hexagonal (green), square (red).
+ORDER_COLORS = {0: "#9e9ecb", 1: "#2ca02c", 2: "#d62728"}
+INIT_MARKERS = {"random": "^", "crystal": "o"}
+CRITERION_COLORS = {"bouncing": "tab:green", "detachment": "tab:olive", "convection": "tab:blue"}
+
+
+def _nl_colors(n_ls):
+    cmap = plt.get_cmap("viridis")
+    n_ls = sorted(set(int(n) for n in n_ls))
+    return {n: cmap(i / max(len(n_ls) - 1, 1) * 0.85) for i, n in enumerate(n_ls)}
+
+
+def fig1_snapshots(panels: list[dict], lx: float = 20.0):
+    """Snapshots coloured by local order (Fig. 1).
+
+    Parameters
+    ----------
+    panels : list of dict
+        Each with ``title`` (str), ``positions`` (N, 2) [σ], ``order`` (N,) int codes
+        (0 disordered, 1 hexagonal, 2 square), optional ``z_plate`` [σ].
+    lx : float [σ]
+        Box width (side walls drawn at 0 and lx).
+    """
+    n = len(panels)
+    height = max(float(np.max(p["positions"][:, 1])) for p in panels) + 1.0
+    fig, axes = plt.subplots(
+        1, n, figsize=(2.3 * n + 0.6, 0.8 + 2.3 * height / lx), layout="constrained",
+        squeeze=False,
+    )  # fmt: skip
+    for ax, p in zip(axes[0], panels, strict=True):
+        pos = np.asarray(p["positions"], dtype=float)
+        order = np.asarray(p["order"], dtype=int)
+        zb = float(p.get("z_plate", min(0.0, pos[:, 1].min() - 0.5)))
+        colors = [ORDER_COLORS.get(int(o), "grey") for o in order]
+        ax.add_collection(
+            EllipseCollection(
+                np.ones(len(pos)), np.ones(len(pos)), np.zeros(len(pos)), units="xy",
+                offsets=pos, offset_transform=ax.transData, facecolors=colors,
+                edgecolors="k", linewidths=0.15,
+            )
+        )  # fmt: skip
+        ax.plot([0, 0], [zb, height], "k-", lw=1)
+        ax.plot([lx, lx], [zb, height], "k-", lw=1)
+        ax.plot([0, lx], [zb, zb], "k-", lw=2)
+        ax.set_xlim(-0.5, lx + 0.5)
+        ax.set_ylim(zb - 0.5, height)
+        ax.set_aspect("equal")
+        ax.set_xticks([0, lx / 2, lx])
+        ax.set_title(p["title"], fontsize=8)
+        frac = np.bincount(order, minlength=3) / max(len(order), 1)
+        ax.set_xlabel(f"hex {frac[1]:.2f}, sq {frac[2]:.2f}, dis {frac[0]:.2f}", fontsize=7)
+    axes[0][0].set_ylabel("z / σ")
+    handles = [
+        Line2D([], [], marker="o", ls="", mfc=ORDER_COLORS[k], mec="k", label=lab)
+        for k, lab in ((1, "hexagonal"), (2, "square"), (0, "disordered"))
+    ]
+    fig.legend(handles=handles, loc="outside lower center", ncol=3, fontsize=8)
+    return fig
+
+
+def fig3_phase_diagram(points: pd.DataFrame, thresholds: pd.DataFrame):
+    """Dynamical phase diagram (Fig. 3): thresholds in Γ against N_l, K_m on the right.
+
+    Parameters
+    ----------
+    points : DataFrame
+        Columns N_l, Gamma, init, bouncing, detached, convection (flags per grid point).
+    thresholds : DataFrame
+        Columns init, N_l, criterion, Gamma, Gamma_low, Gamma_high, status.
+    """
+    fig, ax = plt.subplots(figsize=(6.2, 4.6), layout="constrained")
+    offsets = {"random": -0.6, "crystal": 0.6}
+    # grid points: phase found at each (N_l, Γ)
+    for init, g in points.groupby("init"):
+        x = g["N_l"].to_numpy(float) + 1.6 * offsets.get(init, 0.0)
+        phase = np.where(g["convection"] > 0, 2, np.where(g["bouncing"] > 0, 1, 0))
+        for code, face in ((0, "none"), (1, "0.6"), (2, "k")):
+            m = phase == code
+            ax.scatter(x[m], g["Gamma"].to_numpy()[m], s=9, marker="s", facecolors=face,
+                       edgecolors="0.5", linewidths=0.5, zorder=1)  # fmt: skip
+    for (init, crit), g in thresholds.groupby(["init", "criterion"]):
+        g = g.sort_values("N_l")
+        x = g["N_l"].to_numpy(float) + offsets.get(init, 0.0)
+        y = g["Gamma"].to_numpy(float)
+        lo = g["Gamma_low"].to_numpy(float)
+        hi = g["Gamma_high"].to_numpy(float)
+        color = CRITERION_COLORS.get(crit, "k")
+        fill = "full" if init == "random" else "none"
+        ok = np.isfinite(y)
+        ax.errorbar(
+            x[ok], y[ok], yerr=[y[ok] - lo[ok], hi[ok] - y[ok]], fmt=INIT_MARKERS.get(init, "o"),
+            color=color, fillstyle=fill, ms=7, capsize=3, lw=1, ls="-" if ok.sum() > 1 else "",
+            label=f"{crit}, {init}", zorder=3,
+        )  # fmt: skip
+        # outside the grid: an arrow from the grid end
+        for xi, l_, h_, st in zip(x, lo, hi, g["status"], strict=True):
+            if st == "above_grid" and np.isfinite(l_):
+                ax.annotate("", (xi, l_ + 0.15), (xi, l_), arrowprops={"arrowstyle": "->",
+                            "color": color})  # fmt: skip
+            elif st == "below_grid" and np.isfinite(h_):
+                ax.annotate("", (xi, h_ - 0.15), (xi, h_), arrowprops={"arrowstyle": "->",
+                            "color": color})  # fmt: skip
+    ax.axhline(1.0, color="0.7", lw=0.8, ls=":")
+    n_ls = points["N_l"].to_numpy(float)
+    ax.set_xlim(n_ls.min() - 5.0, n_ls.max() + 5.0)
+    ax.set_xlabel(r"$N_l\,\sigma$")
+    ax.set_ylabel(r"$\Gamma$")
+    sec = ax.secondary_yaxis(
+        "right", functions=(lambda g: np.square(g), lambda k: np.sqrt(np.clip(k, 0, None)))
+    )
+    sec.set_ylabel(r"$K_m = \Gamma^2$")
+    ax.legend(fontsize=7, loc="upper left", title="thresholds; squares: grid (open comoving, "
+              "grey bouncing, black convective)", title_fontsize=6)  # fmt: skip
+    return fig
+
+
+def segmented_curve(x_log: np.ndarray, intercept: float, slopes, breakpoints_log):
+    """y = a + b x + Σ c_k (x − ψ_k)₊ from intercept, per-segment slopes and breakpoints."""
+    slopes = np.asarray(slopes, dtype=float)
+    psi = np.asarray(breakpoints_log, dtype=float)
+    y = intercept + slopes[0] * x_log
+    for k, p in enumerate(psi):
+        y = y + (slopes[k + 1] - slopes[k]) * np.clip(x_log - p, 0, None)
+    return y
+
+
+def _panels(inits):
+    fig, axes = plt.subplots(1, len(inits), figsize=(4.2 * len(inits), 3.8),
+                             layout="constrained", squeeze=False)  # fmt: skip
+    return fig, dict(zip(inits, axes[0], strict=True))
+
+
+def fig4_granular_temperature(points: pd.DataFrame, temperature: pd.DataFrame, fit_n_l: int):
+    """T_g* against K_m (Fig. 4): (a) random, (b) crystal.
+
+    Parameters
+    ----------
+    points : DataFrame with N_l, init, K_m, T_g, T_g_sem
+    temperature : DataFrame with init, N_l, name (``breakpoint``, ``slope_<region>``,
+        ``intercept``), index, value, ci_low, ci_high
+    fit_n_l : int
+        Linear density whose breakpoints are drawn as dashed lines.
+    """
+    inits = [i for i in ("random", "crystal") if i in set(points["init"])]
+    fig, axes = _panels(inits)
+    colors = _nl_colors(points["N_l"])
+    for init, ax in axes.items():
+        for n_l, g in points[points["init"] == init].groupby("N_l"):
+            g = g.sort_values("K_m")
+            ok = g["T_g"] > 0
+            ax.errorbar(g["K_m"][ok], g["T_g"][ok], yerr=g["T_g_sem"][ok].fillna(0), fmt="o",
+                        ms=4, color=colors[int(n_l)], label=f"$N_l$ = {int(n_l)}")  # fmt: skip
+            t = temperature[(temperature["init"] == init) & (temperature["N_l"] == n_l)]
+            if t.empty or not ok.any():
+                continue
+            bps = t[t["name"] == "breakpoint"].sort_values("index")
+            slopes = t[t["name"].str.startswith("slope_")].sort_values("index")
+            a = float(t[t["name"] == "intercept"]["value"].iloc[0])
+            x = np.linspace(np.log(g["K_m"][ok].min()), np.log(g["K_m"][ok].max()), 200)
+            y = segmented_curve(x, a, slopes["value"], np.log(bps["value"]))
+            ax.plot(np.exp(x), np.exp(y), "-", color=colors[int(n_l)], lw=1)
+            if int(n_l) == int(fit_n_l):
+                names = [s.removeprefix("slope_") for s in slopes["name"]]
+                for b in bps.itertuples():
+                    ax.axvline(b.value, color="k", ls="--", lw=0.9)
+                    if np.isfinite(b.ci_low) and np.isfinite(b.ci_high):
+                        ax.axvspan(b.ci_low, b.ci_high, color="0.85", zorder=0)
+                edges = [g["K_m"][ok].min(), *bps["value"], g["K_m"][ok].max()]
+                for name, lo, hi in zip(names, edges[:-1], edges[1:], strict=True):
+                    ax.text(np.sqrt(lo * hi), 0.04, name, transform=ax.get_xaxis_transform(),
+                            ha="center", fontsize=9)  # fmt: skip
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel(r"$K_m$")
+        ax.set_ylabel(r"$T_g^* = T_g/(mg\sigma)$")
+        ax.set_title(f"({'ab'[inits.index(init)]}) {init} start", fontsize=9)
+        ax.legend(fontsize=7)
+    return fig
+
+
+def fig5_slip_probability(
+    points: pd.DataFrame, slips: pd.DataFrame, temperature: pd.DataFrame, fit_n_l: int,
+    bound_cl: float = 0.95,
+):  # fmt: skip
+    """p_s against 1/K_m (Fig. 5) with Arrhenius fits per region for ``fit_n_l``.
+
+    Points without slips are drawn as downward triangles at the exact binomial upper
+    bound (``bound_cl``) on p_s.
+    """
+    from ..analysis.regression import zero_count_upper_bound
+
+    inits = [i for i in ("random", "crystal") if i in set(points["init"])]
+    fig, axes = _panels(inits)
+    colors = _nl_colors(points["N_l"])
+    for init, ax in axes.items():
+        for n_l, g in points[points["init"] == init].groupby("N_l"):
+            g = g[g["n_trials"] > 0].sort_values("K_m")
+            if g.empty:
+                continue
+            x = 1.0 / g["K_m"].to_numpy()
+            p = g["p_s"].to_numpy()
+            c = colors[int(n_l)]
+            pos = p > 0
+            ax.errorbar(x[pos], p[pos], yerr=g["p_s_sem"].to_numpy()[pos], fmt="o", ms=4,
+                        color=c, label=f"$N_l$ = {int(n_l)}")  # fmt: skip
+            up = zero_count_upper_bound(g["n_trials"].to_numpy()[~pos], bound_cl)
+            ax.plot(x[~pos], up, "v", ms=5, mfc="none", color=c)
+            if int(n_l) != int(fit_n_l):
+                continue
+            s = slips[(slips["init"] == init) & (slips["N_l"] == n_l)]
+            t = temperature[(temperature["init"] == init) & (temperature["N_l"] == n_l)]
+            bps = np.sort(t[t["name"] == "breakpoint"]["value"].to_numpy())
+            regions = [
+                r.removeprefix("slope_")
+                for r in t[t["name"].str.startswith("slope_")].sort_values("index")["name"]
+            ]
+            for b in bps:
+                ax.axvline(1.0 / b, color="k", ls="--", lw=0.9)
+            edges = np.concatenate([[0.0], bps, [np.inf]])
+            kall = g["K_m"].to_numpy()
+            # random: one curve over the whole range (as the paper); crystal: per region
+            draw = ["all"] if (init == "random" or not regions) else regions
+            for r_i, region in enumerate(draw):
+                eb = s[s["name"] == f"E_b_{region}"]
+                la = s[s["name"] == f"log_A_{region}"]
+                if eb.empty or not np.isfinite(eb["value"].iloc[0]):
+                    continue
+                lo, hi = (0.0, np.inf) if region == "all" else (edges[r_i], edges[r_i + 1])
+                kk = kall[(kall > lo) & (kall <= hi)]
+                if kk.size == 0:
+                    continue
+                xx = np.linspace(1 / kk.max(), 1 / kk.min(), 50)
+                e, se = float(eb["value"].iloc[0]), float(eb["se"].iloc[0])
+                log_a = float(la["value"].iloc[0])
+                ax.plot(xx, np.exp(log_a - e * xx), "-", color=c, lw=1.2)
+                label = f"{region}: $E_b$ = {e:.3g} ± {se:.2g}"
+                ax.text(xx.mean(), np.exp(log_a - e * xx.mean()) * 1.6, label, fontsize=7,
+                        ha="center")  # fmt: skip
+        ax.set_yscale("log")
+        ax.set_xlabel(r"$1/K_m$")
+        ax.set_ylabel(r"slip probability $p_s$")
+        ax.set_title(f"({'ab'[inits.index(init)]}) {init} start", fontsize=9)
+        ax.legend(fontsize=7)
+    return fig
+
+
+def save(fig, out_dir: str | Path, stem: str) -> list[Path]:
+    """Write ``<out_dir>/<stem>.png`` and ``.pdf`` atomically; close the figure."""
+    paths = []
+    for kind in ("png", "pdf"):
+        path = Path(out_dir) / f"{stem}.{kind}"
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format=kind, dpi=150)
+        paths.append(path)
+    plt.close(fig)
+    return paths
