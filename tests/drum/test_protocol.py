@@ -124,3 +124,15 @@ def test_cli_replica_writes_a_run_file(tmp_path, repo):
     ds = xr.open_dataset(out)
     assert int(ds["replica"].values[0]) == 5 and ds.attrs["stage"] == "replica"
     assert "ns per particle-step" in proc.stderr
+
+
+def test_initial_tangent_sets_about_ten_percent_of_components():
+    from granpipe.drum.protocol import initial_tangent
+
+    dr, dv = initial_tangent(736, np.random.default_rng(0), 0.1)
+    du = np.concatenate([dr, dv], axis=1)
+    frac = np.mean(du != 0)
+    assert abs(frac - 0.1) < 3 * np.sqrt(0.1 * 0.9 / du.size)
+    assert np.abs(du).max() <= 1.0 and (du < 0).any() and (du > 0).any()
+    # each of the four kinds of component is drawn, not only positions
+    assert (dr[:, 0] != 0).any() and (dv[:, 1] != 0).any()

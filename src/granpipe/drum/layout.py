@@ -66,12 +66,14 @@ def run_file(section: Mapping, batch: str | int) -> str:
 
 def init_files(section: Mapping) -> list[str]:
     """Init files relative to ``results/<scale>/drum/``."""
-    return [init_file(section, b) for b in batch_ids(section)]
+    point = point_name(section)
+    return [f"init/{point}/batch_{b}.nc" for b in batch_ids(section)]
 
 
 def run_files(section: Mapping) -> list[str]:
     """Run files relative to ``results/<scale>/drum/`` (used by ``granpipe status``)."""
-    return [run_file(section, b) for b in batch_ids(section)]
+    point = point_name(section)
+    return [f"runs/{point}/batch_{b}.nc" for b in batch_ids(section)]
 
 
 def ensemble_file(section: Mapping) -> str:
