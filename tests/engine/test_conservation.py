@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from granpipe.engine import BoxLaw, DrumLaw, FlatWalls, Simulation, WallDisks
+from granpipe.engine import kernels as K
 from granpipe.engine.geometry import random_disks_in_box
 from tests.engine.conftest import DRUM_LAW, DT_DRUM, small_drum
 
@@ -109,7 +110,7 @@ def momenta(state):
     r, v = state.positions, state.velocities
     orbital = (m * (r[:, 0] * v[:, 1] - r[:, 1] * v[:, 0])).sum()
     inertia = np.zeros_like(m)
-    inv_i = state._s["sca"][0, 2]
+    inv_i = state._s["sca"][0, K.INV_INERTIA]
     inertia[inv_i > 0] = 1.0 / inv_i[inv_i > 0]
     return p, orbital + (inertia * state.spins).sum(), (m * np.abs(v).sum(1)).sum()
 

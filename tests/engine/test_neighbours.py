@@ -132,7 +132,7 @@ def test_every_contact_is_in_the_list_after_rebuilds(law):
     for _ in range(20):
         sim.run(state, 50)
         s = state._s
-        start, pj = s["pair_start"][0], s["pair_j"][0]
+        start, pj = s["pair_start"][0], s["pair_ij"][0, 1]
         listed = {(i, int(j)) for i in range(len(radii)) for j in pj[start[i] : start[i + 1]]}
         p = state.positions
         d = np.linalg.norm(p[:, None] - p[None], axis=-1)

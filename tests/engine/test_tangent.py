@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from granpipe.engine import FlatWalls, Simulation, WallDisks
+from granpipe.engine import kernels as K
 from tests.engine.conftest import DRUM_LAW, DT_DRUM
 
 OMEGA = -2.4417e-4  # drum of SPEC §1, clockwise
@@ -61,9 +62,9 @@ def test_tangent_is_chunk_independent_and_scale_exact(settled_drum_pile):
     sim.random_tangent(a, rng)
     b = a.copy()
     # b starts huge: it is renormalised during the run, a is not
-    b._s["vec"][:, 5:8] *= 2.0**300
-    b._s["sca"][:, 5] *= 2.0**600
-    b._s["counters"][:, 4] = -300
+    b._s["vec"][:, K.T_POS : K.T_FRC + 1] *= 2.0**300
+    b._s["sca"][:, K.T_PREV] *= 2.0**600
+    b._s["counters"][:, K.LOG2_SCALE] = -300
     sim.run(a, 1000, tangent=True)
     for _ in range(4):
         sim.run(b, 250, tangent=True)

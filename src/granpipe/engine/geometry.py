@@ -54,7 +54,7 @@ def _place(rng, radii, sample, max_tries):
 
 
 def random_disks_in_circle(
-    rng, radii, container_radius, centre=(0.0, 0.0), margin=0.0, max_tries=10_000
+    rng, radii, container_radius, centre=(0.0, 0.0), margin=0.0, max_tries=10_000, y_max=None
 ):
     """Non-overlapping disks placed uniformly at random inside a circle.
 
@@ -64,6 +64,9 @@ def random_disks_in_circle(
     radii : (N,) float64 [length]
     container_radius : float [length]
         Disks lie entirely within ``container_radius - margin`` of ``centre``.
+    y_max : float or None [length]
+        If given, centres lie below ``centre[1] + y_max`` (e.g. a low pile that does
+        not fall far).
 
     Returns
     -------
@@ -78,7 +81,7 @@ def random_disks_in_circle(
             raise ConfigError("container too small for the disks")
         while True:
             p = rng.uniform(-rmax, rmax, 2)
-            if p @ p <= rmax * rmax:
+            if p @ p <= rmax * rmax and (y_max is None or p[1] <= y_max):
                 return c0 + p
 
     return _place(rng, radii, sample, max_tries)

@@ -8,7 +8,9 @@ many replicas run side by side), and the Python wrapper in
 
 Storage (per replica, struct of arrays, float64; indices below): ``vec`` (NV, N, 2)
 holds per-disk vectors, ``sca`` (NS, N) per-disk scalars, ``ivec`` (NI, N) per-disk
-integers. The step loop allocates nothing.
+integers; the neighbour list is CSR (``pair_start``, ``pair_ij[1]``) plus the flat
+owner index ``pair_ij[0]`` and per-pair constants ``pair_c``. The step loop
+allocates nothing.
 
 One step ``n -> n+1`` (velocity Verlet; forces use half-step velocities, as DEM
 codes such as LAMMPS do, so the map is explicit)::
@@ -23,6 +25,15 @@ The tangent step is the exact linearization of this discrete map (drum law):
 ``dw = dv + (dt/2) dF/m``, ``dr += dt dw``, ``dF = J_r dr + J_v dw`` (walls carry
 no perturbation), ``dv = dw + (dt/2) dF/m``; ``(dr, dv, dF)`` is carried between
 steps exactly as ``(r, v, F)`` is.
+
+Performance layout (measured on the drum pile, see benchmarks/engine.py): the pair
+forces run in three passes over the flat pair list — gather the relative
+coordinates into contiguous buffers, evaluate the contact law on them (a loop LLVM
+vectorises: the law leaves are written with selects only), scatter the forces —
+because LLVM does not emit hardware gathers on this CPU and the fused scalar loop
+is latency bound. The per-disk passes work on flat ``2N`` arrays and reduce
+flags with ``|=`` so that they vectorise too; bad states are located only after a
+flag is raised.
 """
 
 from __future__ import annotations
@@ -38,17 +49,24 @@ from granpipe.engine.neighbours import build_pairs, carry_history
 from granpipe.engine.walls import bottom_height, bottom_velocity, wall_omega
 
 # rows of vec (NV, N, 2)
-POS, VEL, FRC, POS_BUILD, WALL_REF, T_POS, T_VEL, T_FRC = range(8)
-NV = 8
+POS, VEL, FRC, POS_BUILD, WALL_REF, T_POS, T_VEL, T_FRC, IM2, MOB2, MG = range(11)
+NV = 11
 # rows of sca (NS, N)
 RADIUS, INV_MASS, INV_INERTIA, SPIN, TORQUE, T_PREV, XI_LEFT, XI_RIGHT, XI_BOTTOM = range(9)
 NS = 9
 # rows of ivec (NI, N)
 IS_WALL, CONTACTS, CELL_ITEMS, CELL_OF = range(4)
 NI = 4
-# clock (3,): time origin, wall angle, wall angular velocity of the last step
-T_ORIGIN, THETA, LAST_OMEGA = range(3)
-NCLOCK = 3
+# rows of pair_c (NPC, P): a_i + a_j, overlap bound, m_eff, a_i - a_j
+P_SUM, P_LIM, P_MEFF, P_DIFF = range(4)
+NPC = 4
+# rows of the pair buffer (NB, P)
+B_DX, B_DY, B_DVX, B_DVY, B_E0, B_E1, B_E2, B_E3, B_FX, B_FY, B_G0, B_G1 = range(12)
+NB = 12
+# clock (5,): time origin, wall angle, its angular velocity over the last step, the angle
+# at the last list build, the largest distance of a wall disk from the centre
+T_ORIGIN, THETA, LAST_OMEGA, THETA_BUILD, WALL_RMAX = range(5)
+NCLOCK = 5
 # counters (8,)
 STEP, N_PAIRS, N_REBUILDS, FORCE_REBUILD, LOG2_SCALE, CONTACT_SUM, STEPS_RUN, N_WALLS = range(8)
 NCOUNT = 8
@@ -62,6 +80,7 @@ _RENORM_HI = 2.0**400
 _RENORM_LO = 2.0**-400
 _RENORM_MAX = 2.0**950
 _BIG = 1e300
+_SQRT1_2 = 0.7071067811865476
 
 
 @njit
@@ -73,22 +92,26 @@ def _fail(info, status, particle, other, step):
     return status
 
 
+@njit
+def _flat(a):
+    """A (N, 2) C-contiguous array as a flat (2N,) view."""
+    return a.reshape(a.size)
+
+
 # --------------------------------------------------------------------------- walls, list
 
 
 @njit
 def _update_wall_disks(vec, sca, walls, n_walls, wd, theta, omega):
-    """Place the wall disks at angle ``theta``, velocities ``omega x (r - c)``; max displ.²."""
+    """Place the wall disks at angle ``theta`` with velocities ``omega x (r - c)``."""
     pos = vec[POS]
     vel = vec[VEL]
     ref = vec[WALL_REF]
-    build = vec[POS_BUILD]
     spin = sca[SPIN]
     cx = wd[0]
     cy = wd[1]
     c = math.cos(theta)
     s = math.sin(theta)
-    maxd2 = 0.0
     for m in range(n_walls):
         i = walls[m]
         rx = ref[i, 0]
@@ -100,34 +123,45 @@ def _update_wall_disks(vec, sca, walls, n_walls, wd, theta, omega):
         vel[i, 0] = -omega * (y - cy)
         vel[i, 1] = omega * (x - cx)
         spin[i] = omega
-        dx = x - build[i, 0]
-        dy = y - build[i, 1]
-        maxd2 = max(maxd2, dx * dx + dy * dy)
-    return maxd2
 
 
 @njit
-def _rebuild(vec, sca, ivec, skin, pair_start, pair_j, cell_count, cell_start, counters):
-    n = vec.shape[1]
+def _pair_constants(sca, pair_start, pair_ij, pair_c, npairs):
+    """Owner index and per-pair constants of a freshly built list."""
+    radius = sca[RADIUS]
+    inv_mass = sca[INV_MASS]
+    n = pair_start.shape[0] - 1
+    pi = pair_ij[0]
+    pj = pair_ij[1]
+    for i in range(n):
+        for k in range(pair_start[i], pair_start[i + 1]):
+            pi[k] = i
+    for k in range(npairs):
+        i = pi[k]
+        j = pj[k]
+        ai = radius[i]
+        aj = radius[j]
+        pair_c[P_SUM, k] = ai + aj
+        pair_c[P_LIM, k] = 0.5 * min(ai, aj)
+        pair_c[P_MEFF, k] = 1.0 / (inv_mass[i] + inv_mass[j])
+        pair_c[P_DIFF, k] = ai - aj
+
+
+@njit
+def _rebuild(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, cell_count, cell_start, clock,
+             counters):  # fmt: skip
     npairs = build_pairs(
-        vec[POS],
-        sca[RADIUS],
-        ivec[IS_WALL],
-        skin,
-        cell_count,
-        cell_start,
-        ivec[CELL_ITEMS],
-        ivec[CELL_OF],
-        pair_start,
-        pair_j,
-    )
+        vec[POS], sca[RADIUS], ivec[IS_WALL], skin, cell_count, cell_start,
+        ivec[CELL_ITEMS], ivec[CELL_OF], pair_start, pair_ij[1],
+    )  # fmt: skip
     if npairs < 0:
         return False
-    pos = vec[POS]
-    build = vec[POS_BUILD]
-    for i in range(n):
-        build[i, 0] = pos[i, 0]
-        build[i, 1] = pos[i, 1]
+    _pair_constants(sca, pair_start, pair_ij, pair_c, npairs)
+    p = _flat(vec[POS])
+    b = _flat(vec[POS_BUILD])
+    for k in range(p.shape[0]):
+        b[k] = p[k]
+    clock[THETA_BUILD] = clock[THETA]
     counters[N_PAIRS] = npairs
     counters[N_REBUILDS] += 1
     counters[FORCE_REBUILD] = 0
@@ -135,463 +169,127 @@ def _rebuild(vec, sca, ivec, skin, pair_start, pair_j, cell_count, cell_start, c
 
 
 @njit
-def _rebuild_with_history(
-    vec,
-    sca,
-    ivec,
-    skin,
-    pair_start,
-    pair_j,
-    pair_xi,
-    old_start,
-    old_j,
-    old_xi,
-    cell_count,
-    cell_start,
-    counters,
-):
+def _rebuild_with_history(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, pair_xi, old_start,
+                          old_j, old_xi, cell_count, cell_start, clock, counters):  # fmt: skip
     n = vec.shape[1]
     npairs = counters[N_PAIRS]
+    pj = pair_ij[1]
     for i in range(n + 1):
         old_start[i] = pair_start[i]
     for k in range(npairs):
-        old_j[k] = pair_j[k]
+        old_j[k] = pj[k]
         old_xi[k] = pair_xi[k]
-    if not _rebuild(vec, sca, ivec, skin, pair_start, pair_j, cell_count, cell_start, counters):
+    if not _rebuild(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, cell_count, cell_start,
+                    clock, counters):  # fmt: skip
         return False
     if npairs == 0:
-        # the first build: nothing to carry (old_start may be stale)
         for k in range(counters[N_PAIRS]):
             pair_xi[k] = 0.0
     else:
-        carry_history(old_start, old_j, old_xi, pair_start, pair_j, pair_xi)
+        carry_history(old_start, old_j, old_xi, pair_start, pj, pair_xi)
     return True
 
 
-# --------------------------------------------------------------------------- drum law forces
+# --------------------------------------------------------------------------- per-disk passes
 
 
 @njit
-def _drum_forces(vec, sca, ivec, gx, gy, law, fw, zb, vb, pair_start, pair_j, tangent, info, step):
-    """Forces (and with ``tangent`` their perturbation) under the drum law; contact counts.
+def _set_gravity(vec, sca, gx, gy):
+    """Gravity force ``m g`` of every mobile disk (zero for walls) into row MG."""
+    mg = vec[MG]
+    mob = vec[MOB2]
+    inv_mass = sca[INV_MASS]
+    for i in range(mg.shape[0]):
+        m = 1.0 / inv_mass[i] if mob[i, 0] > 0.0 else 0.0
+        mg[i, 0] = m * gx
+        mg[i, 1] = m * gy
 
-    Returns the number of contacts, or -1 after recording a deep overlap in ``info``.
+
+@njit
+def _kick_drift(vec, sca, dt, thr, spin_on, tangent):
+    """First half kick and drift (walls too: zero inverse mass, positions reset after).
+
+    Returns True if some disk moved more than ``thr * sqrt(2)`` in x or y since the
+    last build (a conservative test of a displacement above ``thr`` = skin/2).
     """
-    pos = vec[POS]
-    vel = vec[VEL]
-    frc = vec[FRC]
-    tr = vec[T_POS]
-    tv = vec[T_VEL]
-    tf = vec[T_FRC]
-    radius = sca[RADIUS]
-    inv_mass = sca[INV_MASS]
-    is_wall = ivec[IS_WALL]
-    contacts = ivec[CONTACTS]
-    k_n = law[0]
-    g_n = law[1]
-    g_t = law[2]
-    mu = law[3]
-    n = pos.shape[0]
-    for i in range(n):
-        contacts[i] = 0
-        if is_wall[i]:
-            frc[i, 0] = 0.0
-            frc[i, 1] = 0.0
-        else:
-            m = 1.0 / inv_mass[i]
-            frc[i, 0] = m * gx
-            frc[i, 1] = m * gy
-        if tangent:
-            tf[i, 0] = 0.0
-            tf[i, 1] = 0.0
-    ncon = 0
-    for i in range(n):
-        k0 = pair_start[i]
-        k1 = pair_start[i + 1]
-        if k0 == k1:
-            continue
-        xi = pos[i, 0]
-        yi = pos[i, 1]
-        vxi = vel[i, 0]
-        vyi = vel[i, 1]
-        ai = radius[i]
-        fxi = 0.0
-        fyi = 0.0
-        dfxi = 0.0
-        dfyi = 0.0
-        ci = 0
-        for k in range(k0, k1):
-            j = pair_j[k]
-            dx = xi - pos[j, 0]
-            dy = yi - pos[j, 1]
-            aj = radius[j]
-            s = ai + aj
-            r2 = dx * dx + dy * dy
-            if r2 > s * s:
-                continue
-            r = math.sqrt(r2)
-            inv_r = 1.0 / r
-            nx = dx * inv_r
-            ny = dy * inv_r
-            delta = r - s
-            if -delta > 0.5 * min(ai, aj):
-                _fail(info, DEEP_OVERLAP, i, j, step)
-                return -1
-            vx = vxi - vel[j, 0]
-            vy = vyi - vel[j, 1]
-            fx, fy, f_n, f_t, regime = drum_force(nx, ny, delta, vx, vy, k_n, g_n, g_t, mu)
-            fxi += fx
-            fyi += fy
-            frc[j, 0] -= fx
-            frc[j, 1] -= fy
-            ci += 1
-            contacts[j] += 1
-            if tangent:
-                dfx, dfy = drum_force_jvp(
-                    nx,
-                    ny,
-                    inv_r,
-                    vx,
-                    vy,
-                    f_n,
-                    f_t,
-                    regime,
-                    tr[i, 0] - tr[j, 0],
-                    tr[i, 1] - tr[j, 1],
-                    tv[i, 0] - tv[j, 0],
-                    tv[i, 1] - tv[j, 1],
-                    k_n,
-                    g_n,
-                    g_t,
-                    mu,
-                )
-                dfxi += dfx
-                dfyi += dfy
-                tf[j, 0] -= dfx
-                tf[j, 1] -= dfy
-        frc[i, 0] += fxi
-        frc[i, 1] += fyi
-        contacts[i] += ci
-        ncon += ci
-        if tangent:
-            tf[i, 0] += dfxi
-            tf[i, 1] += dfyi
-    if fw[0] != 0.0 or fw[2] != 0.0 or fw[4] != 0.0:
-        for i in range(n):
-            if is_wall[i]:
-                continue
-            ai = radius[i]
-            for w in range(3):
-                if fw[2 * w] == 0.0:
-                    continue
-                if w == 0:
-                    h = pos[i, 0] - fw[1]
-                    nx = 1.0
-                    ny = 0.0
-                    vx = vel[i, 0]
-                    vy = vel[i, 1]
-                elif w == 1:
-                    h = fw[3] - pos[i, 0]
-                    nx = -1.0
-                    ny = 0.0
-                    vx = vel[i, 0]
-                    vy = vel[i, 1]
-                else:
-                    h = pos[i, 1] - zb
-                    nx = 0.0
-                    ny = 1.0
-                    vx = vel[i, 0]
-                    vy = vel[i, 1] - vb
-                delta = h - ai
-                if delta > 0.0:
-                    continue
-                if -delta > 0.5 * ai:
-                    _fail(info, DEEP_OVERLAP, i, -1 - w, step)
-                    return -1
-                fx, fy, f_n, f_t, regime = drum_force(nx, ny, delta, vx, vy, k_n, g_n, g_t, mu)
-                frc[i, 0] += fx
-                frc[i, 1] += fy
-                contacts[i] += 1
-                ncon += 1
-                if tangent:
-                    dfx, dfy = drum_force_jvp(
-                        nx,
-                        ny,
-                        0.0,
-                        vx,
-                        vy,
-                        f_n,
-                        f_t,
-                        regime,
-                        tr[i, 0],
-                        tr[i, 1],
-                        tv[i, 0],
-                        tv[i, 1],
-                        k_n,
-                        g_n,
-                        g_t,
-                        mu,
-                    )
-                    tf[i, 0] += dfx
-                    tf[i, 1] += dfy
-    return ncon
-
-
-# --------------------------------------------------------------------------- box law forces
-
-
-@njit
-def _box_forces(
-    vec, sca, ivec, gx, gy, law, fw, zb, vb, dt_hist, pair_start, pair_j, pair_xi, info, step
-):
-    """Forces and torques under the box law; advances shear histories by ``dt_hist``."""
-    pos = vec[POS]
-    vel = vec[VEL]
-    frc = vec[FRC]
-    radius = sca[RADIUS]
-    inv_mass = sca[INV_MASS]
-    spin = sca[SPIN]
-    trq = sca[TORQUE]
-    is_wall = ivec[IS_WALL]
-    contacts = ivec[CONTACTS]
-    kap_n = law[0]
-    kap_t = law[1]
-    g_n = law[2]
-    g_t = law[3]
-    mu = law[4]
-    n = pos.shape[0]
-    for i in range(n):
-        contacts[i] = 0
-        trq[i] = 0.0
-        if is_wall[i]:
-            frc[i, 0] = 0.0
-            frc[i, 1] = 0.0
-        else:
-            m = 1.0 / inv_mass[i]
-            frc[i, 0] = m * gx
-            frc[i, 1] = m * gy
-    ncon = 0
-    for i in range(n):
-        k0 = pair_start[i]
-        k1 = pair_start[i + 1]
-        if k0 == k1:
-            continue
-        xi = pos[i, 0]
-        yi = pos[i, 1]
-        vxi = vel[i, 0]
-        vyi = vel[i, 1]
-        wi = spin[i]
-        ai = radius[i]
-        imi = inv_mass[i]
-        fxi = 0.0
-        fyi = 0.0
-        ti = 0.0
-        ci = 0
-        for k in range(k0, k1):
-            j = pair_j[k]
-            dx = xi - pos[j, 0]
-            dy = yi - pos[j, 1]
-            aj = radius[j]
-            s = ai + aj
-            r2 = dx * dx + dy * dy
-            if r2 > s * s:
-                pair_xi[k] = 0.0
-                continue
-            r = math.sqrt(r2)
-            inv_r = 1.0 / r
-            overlap = s - r
-            if overlap > 0.5 * min(ai, aj):
-                _fail(info, DEEP_OVERLAP, i, j, step)
-                return -1
-            m_eff = 1.0 / (imi + inv_mass[j])
-            fx, fy, tau_i, tau_j, xi_new, f_n, f_t, slip = box_force(
-                dx * inv_r,
-                dy * inv_r,
-                overlap,
-                0.5 * (r + ai - aj),
-                0.5 * (r + aj - ai),
-                vxi - vel[j, 0],
-                vyi - vel[j, 1],
-                wi,
-                spin[j],
-                m_eff,
-                pair_xi[k],
-                dt_hist,
-                kap_n,
-                kap_t,
-                g_n,
-                g_t,
-                mu,
-            )
-            pair_xi[k] = xi_new
-            fxi += fx
-            fyi += fy
-            ti += tau_i
-            frc[j, 0] -= fx
-            frc[j, 1] -= fy
-            trq[j] += tau_j
-            ci += 1
-            contacts[j] += 1
-        frc[i, 0] += fxi
-        frc[i, 1] += fyi
-        trq[i] += ti
-        contacts[i] += ci
-        ncon += ci
-    if fw[0] != 0.0 or fw[2] != 0.0 or fw[4] != 0.0:
-        xi_w = sca[XI_LEFT : XI_BOTTOM + 1]
-        for i in range(n):
-            if is_wall[i]:
-                continue
-            ai = radius[i]
-            for w in range(3):
-                if fw[2 * w] == 0.0:
-                    continue
-                if w == 0:
-                    h = pos[i, 0] - fw[1]
-                    nx = 1.0
-                    ny = 0.0
-                    vx = vel[i, 0]
-                    vy = vel[i, 1]
-                    mu_w = law[6]
-                elif w == 1:
-                    h = fw[3] - pos[i, 0]
-                    nx = -1.0
-                    ny = 0.0
-                    vx = vel[i, 0]
-                    vy = vel[i, 1]
-                    mu_w = law[6]
-                else:
-                    h = pos[i, 1] - zb
-                    nx = 0.0
-                    ny = 1.0
-                    vx = vel[i, 0]
-                    vy = vel[i, 1] - vb
-                    mu_w = law[5]
-                overlap = ai - h
-                if overlap < 0.0:
-                    xi_w[w, i] = 0.0
-                    continue
-                if overlap > 0.5 * ai:
-                    _fail(info, DEEP_OVERLAP, i, -1 - w, step)
-                    return -1
-                fx, fy, tau_i, tau_j, xi_new, f_n, f_t, slip = box_force(
-                    nx,
-                    ny,
-                    overlap,
-                    ai - 0.5 * overlap,
-                    0.0,
-                    vx,
-                    vy,
-                    spin[i],
-                    0.0,
-                    1.0 / inv_mass[i],
-                    xi_w[w, i],
-                    dt_hist,
-                    kap_n,
-                    kap_t,
-                    g_n,
-                    g_t,
-                    mu_w,
-                )
-                xi_w[w, i] = xi_new
-                frc[i, 0] += fx
-                frc[i, 1] += fy
-                trq[i] += tau_i
-                contacts[i] += 1
-                ncon += 1
-    return ncon
-
-
-# --------------------------------------------------------------------------- one replica
-
-
-@njit
-def _kick_drift(vec, sca, ivec, dt, spin_on, tangent):
-    """First half kick and drift of the mobile disks; returns the max displacement² since build."""
-    pos = vec[POS]
-    vel = vec[VEL]
-    frc = vec[FRC]
-    build = vec[POS_BUILD]
-    inv_mass = sca[INV_MASS]
-    is_wall = ivec[IS_WALL]
-    n = pos.shape[0]
+    p = _flat(vec[POS])
+    v = _flat(vec[VEL])
+    f = _flat(vec[FRC])
+    im = _flat(vec[IM2])
+    b = _flat(vec[POS_BUILD])
     h = 0.5 * dt
-    maxd2 = 0.0
-    for i in range(n):
-        if is_wall[i]:
-            continue
-        im = inv_mass[i]
-        vx = vel[i, 0] + h * (frc[i, 0] * im)
-        vy = vel[i, 1] + h * (frc[i, 1] * im)
-        vel[i, 0] = vx
-        vel[i, 1] = vy
-        x = pos[i, 0] + dt * vx
-        y = pos[i, 1] + dt * vy
-        pos[i, 0] = x
-        pos[i, 1] = y
-        dx = x - build[i, 0]
-        dy = y - build[i, 1]
-        maxd2 = max(maxd2, dx * dx + dy * dy)
+    lim = thr * _SQRT1_2
+    moved = False
+    for k in range(p.shape[0]):
+        w = v[k] + h * (f[k] * im[k])
+        v[k] = w
+        x = p[k] + dt * w
+        p[k] = x
+        moved |= abs(x - b[k]) > lim
     if spin_on:
         spin = sca[SPIN]
         trq = sca[TORQUE]
         inv_i = sca[INV_INERTIA]
-        for i in range(n):
-            if not is_wall[i]:
-                spin[i] = spin[i] + h * (trq[i] * inv_i[i])
+        for i in range(spin.shape[0]):
+            spin[i] = spin[i] + h * (trq[i] * inv_i[i])
     if tangent:
-        tr = vec[T_POS]
-        tv = vec[T_VEL]
-        tf = vec[T_FRC]
-        for i in range(n):
-            if is_wall[i]:
-                continue
-            im = inv_mass[i]
-            wx = tv[i, 0] + h * (tf[i, 0] * im)
-            wy = tv[i, 1] + h * (tf[i, 1] * im)
-            tv[i, 0] = wx
-            tv[i, 1] = wy
-            tr[i, 0] = tr[i, 0] + dt * wx
-            tr[i, 1] = tr[i, 1] + dt * wy
-    return maxd2
+        tr = _flat(vec[T_POS])
+        tv = _flat(vec[T_VEL])
+        tf = _flat(vec[T_FRC])
+        for k in range(tr.shape[0]):
+            w = tv[k] + h * (tf[k] * im[k])
+            tv[k] = w
+            tr[k] = tr[k] + dt * w
+    return moved
 
 
 @njit
-def _final_kick(vec, sca, ivec, dt, spin_on, info, step):
-    """Second half kick; returns sum |v|² over mobile disks, or -1 on a non-finite state."""
-    pos = vec[POS]
-    vel = vec[VEL]
-    frc = vec[FRC]
-    inv_mass = sca[INV_MASS]
-    is_wall = ivec[IS_WALL]
-    n = pos.shape[0]
+def _final_kick(vec, sca, dt, spin_on):
+    """Second half kick; returns (sum |v|² over mobile disks, non-finite flag)."""
+    v = _flat(vec[VEL])
+    f = _flat(vec[FRC])
+    im = _flat(vec[IM2])
+    mob = _flat(vec[MOB2])
     h = 0.5 * dt
-    v2 = 0.0
-    for i in range(n):
-        if is_wall[i]:
-            continue
-        im = inv_mass[i]
-        vx = vel[i, 0] + h * (frc[i, 0] * im)
-        vy = vel[i, 1] + h * (frc[i, 1] * im)
-        vel[i, 0] = vx
-        vel[i, 1] = vy
-        v2 += vx * vx + vy * vy
-        if not (abs(vx) + abs(vy) + abs(pos[i, 0]) + abs(pos[i, 1]) < _BIG):
-            _fail(info, NONFINITE, i, -1, step)
-            return -1.0
+    bad = False
+    for k in range(v.shape[0]):
+        w = v[k] + h * (f[k] * im[k])
+        v[k] = w
+        bad |= not (abs(w) < _BIG)
+    # four partial sums: a fixed order (reproducible) that does not serialise on one add
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    m = v.shape[0] - v.shape[0] % 4
+    for k in range(0, m, 4):
+        s0 += v[k] * v[k] * mob[k]
+        s1 += v[k + 1] * v[k + 1] * mob[k + 1]
+        s2 += v[k + 2] * v[k + 2] * mob[k + 2]
+        s3 += v[k + 3] * v[k + 3] * mob[k + 3]
+    for k in range(m, v.shape[0]):
+        s0 += v[k] * v[k] * mob[k]
     if spin_on:
         spin = sca[SPIN]
         trq = sca[TORQUE]
         inv_i = sca[INV_INERTIA]
-        for i in range(n):
-            if is_wall[i]:
-                continue
+        for i in range(spin.shape[0]):
             w = spin[i] + h * (trq[i] * inv_i[i])
             spin[i] = w
-            if not (abs(w) < _BIG):
-                _fail(info, NONFINITE, i, -1, step)
-                return -1.0
-    return v2
+            bad |= not (abs(w) < _BIG)
+    return (s0 + s1) + (s2 + s3), bad
+
+
+@njit
+def _first_nonfinite(vec, sca):
+    """Index of the first mobile disk with a non-finite velocity or spin."""
+    vel = vec[VEL]
+    spin = sca[SPIN]
+    mob = vec[MOB2]
+    for i in range(vel.shape[0]):
+        if mob[i, 0] > 0.0 and not (abs(vel[i, 0]) + abs(vel[i, 1]) + abs(spin[i]) < _BIG):
+            return i
+    return -1
 
 
 @njit
@@ -604,9 +302,9 @@ def _tangent_kick(vec, sca, ivec, dt, info, step, counters):
     tr = vec[T_POS]
     tv = vec[T_VEL]
     tf = vec[T_FRC]
+    im = vec[IM2]
+    mob = vec[MOB2]
     prev = sca[T_PREV]
-    inv_mass = sca[INV_MASS]
-    is_wall = ivec[IS_WALL]
     contacts = ivec[CONTACTS]
     n = tr.shape[0]
     h = 0.5 * dt
@@ -614,17 +312,14 @@ def _tangent_kick(vec, sca, ivec, dt, info, step, counters):
     den = 0.0
     total = 0.0
     for i in range(n):
-        if is_wall[i]:
-            continue
-        im = inv_mass[i]
-        wx = tv[i, 0] + h * (tf[i, 0] * im)
-        wy = tv[i, 1] + h * (tf[i, 1] * im)
+        wx = tv[i, 0] + h * (tf[i, 0] * im[i, 0])
+        wy = tv[i, 1] + h * (tf[i, 1] * im[i, 1])
         tv[i, 0] = wx
         tv[i, 1] = wy
-        q = tr[i, 0] * tr[i, 0] + tr[i, 1] * tr[i, 1] + wx * wx + wy * wy
-        if contacts[i] >= 2:
-            num += q
-            den += prev[i]
+        q = (tr[i, 0] * tr[i, 0] + tr[i, 1] * tr[i, 1] + wx * wx + wy * wy) * mob[i, 0]
+        s = contacts[i] >= 2
+        num += q if s else 0.0
+        den += prev[i] if s else 0.0
         prev[i] = q
         total += q
     if not (total < math.inf):
@@ -638,16 +333,408 @@ def _tangent_kick(vec, sca, ivec, dt, info, step, counters):
         e = max(e, int(math.ceil(0.5 * math.log2(total))) - 450)
         c = math.ldexp(1.0, -e)
         c2 = c * c
+        a = _flat(tr)
+        b = _flat(tv)
+        d = _flat(tf)
+        for k in range(a.shape[0]):
+            a[k] *= c
+            b[k] *= c
+            d[k] *= c
         for i in range(n):
-            tr[i, 0] *= c
-            tr[i, 1] *= c
-            tv[i, 0] *= c
-            tv[i, 1] *= c
-            tf[i, 0] *= c
-            tf[i, 1] *= c
             prev[i] *= c2
         counters[LOG2_SCALE] += e
     return num, den
+
+
+# --------------------------------------------------------------------------- pair passes
+
+
+@njit
+def _gather(vec, pair_ij, buf, npairs, tangent):
+    """Relative positions and velocities of every listed pair into contiguous rows."""
+    p = _flat(vec[POS])
+    v = _flat(vec[VEL])
+    pi = pair_ij[0]
+    pj = pair_ij[1]
+    dx = buf[B_DX]
+    dy = buf[B_DY]
+    dvx = buf[B_DVX]
+    dvy = buf[B_DVY]
+    two = np.uint32(2)
+    one = np.uint32(1)
+    for k in range(npairs):
+        i2 = two * pi[k]
+        j2 = two * pj[k]
+        dx[k] = p[i2] - p[j2]
+        dy[k] = p[i2 + one] - p[j2 + one]
+        dvx[k] = v[i2] - v[j2]
+        dvy[k] = v[i2 + one] - v[j2 + one]
+    if tangent:
+        tr = _flat(vec[T_POS])
+        tv = _flat(vec[T_VEL])
+        ex = buf[B_E0]
+        ey = buf[B_E1]
+        evx = buf[B_E2]
+        evy = buf[B_E3]
+        for k in range(npairs):
+            i2 = two * pi[k]
+            j2 = two * pj[k]
+            ex[k] = tr[i2] - tr[j2]
+            ey[k] = tr[i2 + one] - tr[j2 + one]
+            evx[k] = tv[i2] - tv[j2]
+            evy[k] = tv[i2 + one] - tv[j2 + one]
+
+
+@njit
+def _drum_pairs(buf, pair_c, touch, law, npairs):
+    """Drum-law force of every listed pair (zero if apart). Returns (contacts, bad)."""
+    k_n = law[0]
+    g_n = law[1]
+    g_t = law[2]
+    mu = law[3]
+    dxa = buf[B_DX]
+    dya = buf[B_DY]
+    dvx = buf[B_DVX]
+    dvy = buf[B_DVY]
+    fxa = buf[B_FX]
+    fya = buf[B_FY]
+    ssum = pair_c[P_SUM]
+    slim = pair_c[P_LIM]
+    ncon = 0
+    bad = False
+    for k in range(npairs):
+        dx = dxa[k]
+        dy = dya[k]
+        s = ssum[k]
+        r2 = dx * dx + dy * dy
+        r = math.sqrt(r2)
+        inv_r = 1.0 / r
+        delta = r - s
+        fx, fy, f_n, f_t, regime = drum_force(
+            dx * inv_r, dy * inv_r, delta, dvx[k], dvy[k], k_n, g_n, g_t, mu
+        )
+        t = r2 <= s * s
+        fxa[k] = fx if t else 0.0
+        fya[k] = fy if t else 0.0
+        touch[k] = 1 if t else 0
+        ncon += 1 if t else 0
+        bad |= -delta > slim[k]
+    return ncon, bad
+
+
+@njit
+def _drum_pairs_tangent(buf, pair_c, touch, law, npairs):
+    """Drum-law forces and their perturbation ``J . (dd, dv)`` for every listed pair."""
+    k_n = law[0]
+    g_n = law[1]
+    g_t = law[2]
+    mu = law[3]
+    dxa = buf[B_DX]
+    dya = buf[B_DY]
+    dvx = buf[B_DVX]
+    dvy = buf[B_DVY]
+    ex = buf[B_E0]
+    ey = buf[B_E1]
+    evx = buf[B_E2]
+    evy = buf[B_E3]
+    fxa = buf[B_FX]
+    fya = buf[B_FY]
+    gxa = buf[B_G0]
+    gya = buf[B_G1]
+    ssum = pair_c[P_SUM]
+    slim = pair_c[P_LIM]
+    ncon = 0
+    bad = False
+    for k in range(npairs):
+        dx = dxa[k]
+        dy = dya[k]
+        s = ssum[k]
+        r2 = dx * dx + dy * dy
+        r = math.sqrt(r2)
+        inv_r = 1.0 / r
+        nx = dx * inv_r
+        ny = dy * inv_r
+        delta = r - s
+        vx = dvx[k]
+        vy = dvy[k]
+        fx, fy, f_n, f_t, regime = drum_force(nx, ny, delta, vx, vy, k_n, g_n, g_t, mu)
+        gx, gy = drum_force_jvp(
+            nx, ny, inv_r, vx, vy, f_n, f_t, regime, ex[k], ey[k], evx[k], evy[k],
+            k_n, g_n, g_t, mu,
+        )  # fmt: skip
+        t = r2 <= s * s
+        fxa[k] = fx if t else 0.0
+        fya[k] = fy if t else 0.0
+        gxa[k] = gx if t else 0.0
+        gya[k] = gy if t else 0.0
+        touch[k] = 1 if t else 0
+        ncon += 1 if t else 0
+        bad |= -delta > slim[k]
+    return ncon, bad
+
+
+@njit
+def _box_gather_spins(sca, pair_ij, buf, npairs):
+    spin = sca[SPIN]
+    pi = pair_ij[0]
+    pj = pair_ij[1]
+    wi = buf[B_E0]
+    wj = buf[B_E1]
+    for k in range(npairs):
+        wi[k] = spin[pi[k]]
+        wj[k] = spin[pj[k]]
+
+
+@njit
+def _box_pairs(buf, pair_c, pair_xi, touch, law, dt_hist, npairs):
+    """Box-law force and torques of every listed pair; advances (or resets) histories."""
+    kap_n = law[0]
+    kap_t = law[1]
+    g_n = law[2]
+    g_t = law[3]
+    mu = law[4]
+    dxa = buf[B_DX]
+    dya = buf[B_DY]
+    dvx = buf[B_DVX]
+    dvy = buf[B_DVY]
+    wia = buf[B_E0]
+    wja = buf[B_E1]
+    fxa = buf[B_FX]
+    fya = buf[B_FY]
+    tia = buf[B_G0]
+    tja = buf[B_G1]
+    ssum = pair_c[P_SUM]
+    slim = pair_c[P_LIM]
+    smeff = pair_c[P_MEFF]
+    sdiff = pair_c[P_DIFF]
+    ncon = 0
+    bad = False
+    for k in range(npairs):
+        dx = dxa[k]
+        dy = dya[k]
+        s = ssum[k]
+        r2 = dx * dx + dy * dy
+        r = math.sqrt(r2)
+        inv_r = 1.0 / r
+        overlap = s - r
+        diff = sdiff[k]
+        fx, fy, tau_i, tau_j, xi_new, f_n, f_t, slip = box_force(
+            dx * inv_r, dy * inv_r, overlap, 0.5 * (r + diff), 0.5 * (r - diff), dvx[k], dvy[k],
+            wia[k], wja[k], smeff[k], pair_xi[k], dt_hist, kap_n, kap_t, g_n, g_t, mu,
+        )  # fmt: skip
+        t = r2 <= s * s
+        fxa[k] = fx if t else 0.0
+        fya[k] = fy if t else 0.0
+        tia[k] = tau_i if t else 0.0
+        tja[k] = tau_j if t else 0.0
+        pair_xi[k] = xi_new if t else 0.0
+        touch[k] = 1 if t else 0
+        ncon += 1 if t else 0
+        bad |= overlap > slim[k]
+    return ncon, bad
+
+
+@njit
+def _scatter(vec, sca, ivec, pair_ij, buf, touch, npairs, tangent, torques, count):
+    """Add the pair forces (and perturbations, torques, contact counts) to the disks."""
+    f = _flat(vec[FRC])
+    mg = _flat(vec[MG])
+    for k in range(f.shape[0]):
+        f[k] = mg[k]
+    pi = pair_ij[0]
+    pj = pair_ij[1]
+    fx = buf[B_FX]
+    fy = buf[B_FY]
+    two = np.uint32(2)
+    one = np.uint32(1)
+    for k in range(npairs):
+        i2 = two * pi[k]
+        j2 = two * pj[k]
+        a = fx[k]
+        b = fy[k]
+        f[i2] += a
+        f[i2 + one] += b
+        f[j2] -= a
+        f[j2 + one] -= b
+    if tangent:
+        tf = _flat(vec[T_FRC])
+        gx = buf[B_G0]
+        gy = buf[B_G1]
+        for k in range(tf.shape[0]):
+            tf[k] = 0.0
+        for k in range(npairs):
+            i2 = two * pi[k]
+            j2 = two * pj[k]
+            a = gx[k]
+            b = gy[k]
+            tf[i2] += a
+            tf[i2 + one] += b
+            tf[j2] -= a
+            tf[j2 + one] -= b
+    if torques:
+        trq = sca[TORQUE]
+        ti = buf[B_G0]
+        tj = buf[B_G1]
+        for i in range(trq.shape[0]):
+            trq[i] = 0.0
+        for k in range(npairs):
+            trq[pi[k]] += ti[k]
+            trq[pj[k]] += tj[k]
+    if count:
+        contacts = ivec[CONTACTS]
+        for i in range(contacts.shape[0]):
+            contacts[i] = 0
+        for k in range(npairs):
+            c = touch[k]
+            contacts[pi[k]] += c
+            contacts[pj[k]] += c
+
+
+@njit
+def _first_deep_pair(pair_ij, buf, pair_c, npairs):
+    """First listed pair whose overlap exceeds its bound (called after a flag was raised)."""
+    for k in range(npairs):
+        dx = buf[B_DX, k]
+        dy = buf[B_DY, k]
+        r = math.sqrt(dx * dx + dy * dy)
+        if pair_c[P_SUM, k] - r > pair_c[P_LIM, k]:
+            return pair_ij[0, k], pair_ij[1, k]
+    return -1, -1
+
+
+# --------------------------------------------------------------------------- flat walls
+
+
+@njit
+def _wall_geometry(w, x, y, vx, vy, fw, zb, vb):
+    """Distance, inward normal and relative velocity of a disk against flat wall ``w``."""
+    if w == 0:
+        return x - fw[1], 1.0, 0.0, vx, vy
+    if w == 1:
+        return fw[3] - x, -1.0, 0.0, vx, vy
+    return y - zb, 0.0, 1.0, vx, vy - vb
+
+
+@njit
+def _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step):
+    """Drum-law contacts with the flat walls. Returns the contact count, or -1 (bad)."""
+    pos = vec[POS]
+    vel = vec[VEL]
+    frc = vec[FRC]
+    mob = vec[MOB2]
+    tr = vec[T_POS]
+    tv = vec[T_VEL]
+    tf = vec[T_FRC]
+    radius = sca[RADIUS]
+    contacts = ivec[CONTACTS]
+    k_n = law[0]
+    g_n = law[1]
+    g_t = law[2]
+    mu = law[3]
+    ncon = 0
+    for i in range(pos.shape[0]):
+        if mob[i, 0] == 0.0:
+            continue
+        ai = radius[i]
+        for w in range(3):
+            if fw[2 * w] == 0.0:
+                continue
+            h, nx, ny, vx, vy = _wall_geometry(
+                w, pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], fw, zb, vb
+            )
+            delta = h - ai
+            if delta > 0.0:
+                continue
+            if -delta > 0.5 * ai:
+                _fail(info, DEEP_OVERLAP, i, -1 - w, step)
+                return -1
+            fx, fy, f_n, f_t, regime = drum_force(nx, ny, delta, vx, vy, k_n, g_n, g_t, mu)
+            frc[i, 0] += fx
+            frc[i, 1] += fy
+            ncon += 1
+            if count:
+                contacts[i] += 1
+            if tangent:
+                dfx, dfy = drum_force_jvp(
+                    nx, ny, 0.0, vx, vy, f_n, f_t, regime, tr[i, 0], tr[i, 1], tv[i, 0],
+                    tv[i, 1], k_n, g_n, g_t, mu,
+                )  # fmt: skip
+                tf[i, 0] += dfx
+                tf[i, 1] += dfy
+    return ncon
+
+
+@njit
+def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step):
+    """Box-law contacts with the flat walls (per-disk histories). Returns count or -1."""
+    pos = vec[POS]
+    vel = vec[VEL]
+    frc = vec[FRC]
+    mob = vec[MOB2]
+    radius = sca[RADIUS]
+    inv_mass = sca[INV_MASS]
+    spin = sca[SPIN]
+    trq = sca[TORQUE]
+    contacts = ivec[CONTACTS]
+    xi_w = sca[XI_LEFT : XI_BOTTOM + 1]
+    ncon = 0
+    for i in range(pos.shape[0]):
+        if mob[i, 0] == 0.0:
+            continue
+        ai = radius[i]
+        for w in range(3):
+            if fw[2 * w] == 0.0:
+                continue
+            h, nx, ny, vx, vy = _wall_geometry(
+                w, pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], fw, zb, vb
+            )
+            overlap = ai - h
+            if overlap < 0.0:
+                xi_w[w, i] = 0.0
+                continue
+            if overlap > 0.5 * ai:
+                _fail(info, DEEP_OVERLAP, i, -1 - w, step)
+                return -1
+            mu_w = law[5] if w == 2 else law[6]
+            fx, fy, tau_i, tau_j, xi_new, f_n, f_t, slip = box_force(
+                nx, ny, overlap, ai - 0.5 * overlap, 0.0, vx, vy, spin[i], 0.0,
+                1.0 / inv_mass[i], xi_w[w, i], dt_hist, law[0], law[1], law[2], law[3], mu_w,
+            )  # fmt: skip
+            xi_w[w, i] = xi_new
+            frc[i, 0] += fx
+            frc[i, 1] += fy
+            trq[i] += tau_i
+            ncon += 1
+            if count:
+                contacts[i] += 1
+    return ncon
+
+
+@njit
+def _count_contacts(vec, sca, ivec, pair_ij, touch, npairs, fw, zb):
+    """Contact counts from the last evaluation's touch flags and the flat walls."""
+    contacts = ivec[CONTACTS]
+    pos = vec[POS]
+    mob = vec[MOB2]
+    radius = sca[RADIUS]
+    for i in range(contacts.shape[0]):
+        contacts[i] = 0
+    for k in range(npairs):
+        c = touch[k]
+        contacts[pair_ij[0, k]] += c
+        contacts[pair_ij[1, k]] += c
+    for i in range(pos.shape[0]):
+        if mob[i, 0] == 0.0:
+            continue
+        for w in range(3):
+            if fw[2 * w] == 0.0:
+                continue
+            h, nx, ny, vx, vy = _wall_geometry(w, pos[i, 0], pos[i, 1], 0.0, 0.0, fw, zb, 0.0)
+            if h <= radius[i]:
+                contacts[i] += 1
+
+
+# --------------------------------------------------------------------------- one replica
 
 
 @njit
@@ -656,84 +743,111 @@ def _time(clock, counters, dt):
 
 
 @njit
-def _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt):
-    """Move the walls over the step that starts now; returns (max wall displacement², z_b, v_b)."""
+def _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin):
+    """Move the walls over the step that starts now; returns (walls moved far, z_b, v_b)."""
     t0 = _time(clock, counters, dt)
     t1 = clock[T_ORIGIN] + (counters[STEP] + 1) * dt
-    maxd2 = 0.0
+    moved = False
     n_walls = counters[N_WALLS]
     if n_walls > 0:
         omega = wall_omega(wd, t0 + 0.5 * dt)
         if omega != 0.0 or clock[LAST_OMEGA] != 0.0:
             clock[THETA] += omega * dt
-            maxd2 = _update_wall_disks(vec, sca, walls, n_walls, wd, clock[THETA], omega)
+            _update_wall_disks(vec, sca, walls, n_walls, wd, clock[THETA], omega)
             clock[LAST_OMEGA] = omega
+            # a wall disk at distance R has moved by at most R |theta - theta_build|
+            moved = clock[WALL_RMAX] * abs(clock[THETA] - clock[THETA_BUILD]) > half_skin
     zb = 0.0
     vb = 0.0
     if fw[4] != 0.0:
         zb = bottom_height(fw, t1)
         vb = bottom_velocity(fw, t0 + 0.5 * dt)
-    return maxd2, zb, vb
+    return moved, zb, vb
 
 
 @njit
-def _drum_replica(
-    n_steps,
-    stride,
-    tangent,
-    dt,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_j,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    out_lam,
-    out_nlam,
-    out_speed,
-    info,
-):
+def _has_flat(fw):
+    return fw[0] != 0.0 or fw[2] != 0.0 or fw[4] != 0.0
+
+
+@njit
+def _drum_forces(vec, sca, ivec, law, fw, zb, vb, pair_ij, pair_c, buf, touch, npairs, tangent,
+                 count, info, step):  # fmt: skip
+    """All drum-law forces of one evaluation; returns the contact count or -1 (bad)."""
+    _gather(vec, pair_ij, buf, npairs, tangent)
+    if tangent:
+        ncon, bad = _drum_pairs_tangent(buf, pair_c, touch, law, npairs)
+    else:
+        ncon, bad = _drum_pairs(buf, pair_c, touch, law, npairs)
+    if bad:
+        i, j = _first_deep_pair(pair_ij, buf, pair_c, npairs)
+        _fail(info, DEEP_OVERLAP, i, j, step)
+        return -1
+    _scatter(vec, sca, ivec, pair_ij, buf, touch, npairs, tangent, False, count)
+    if _has_flat(fw):
+        nw = _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step)
+        if nw < 0:
+            return -1
+        ncon += nw
+    return ncon
+
+
+@njit
+def _box_forces(vec, sca, ivec, law, fw, zb, vb, dt_hist, pair_ij, pair_c, pair_xi, buf, touch,
+                npairs, count, info, step):  # fmt: skip
+    """All box-law forces and torques of one evaluation; contact count or -1 (bad)."""
+    _gather(vec, pair_ij, buf, npairs, False)
+    _box_gather_spins(sca, pair_ij, buf, npairs)
+    ncon, bad = _box_pairs(buf, pair_c, pair_xi, touch, law, dt_hist, npairs)
+    if bad:
+        i, j = _first_deep_pair(pair_ij, buf, pair_c, npairs)
+        _fail(info, DEEP_OVERLAP, i, j, step)
+        return -1
+    _scatter(vec, sca, ivec, pair_ij, buf, touch, npairs, False, True, count)
+    if _has_flat(fw):
+        nw = _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
+        if nw < 0:
+            return -1
+        ncon += nw
+    return ncon
+
+
+@njit
+def _drum_replica(n_steps, stride, tangent, dt, g, law, wd, fw, skin, vec, sca, ivec, walls,
+                  pair_start, pair_ij, pair_c, buf, touch, cell_count, cell_start, clock,
+                  counters, out_lam, out_nlam, out_speed, info):  # fmt: skip
     """Advance one replica ``n_steps`` under the drum law (optionally with its tangent vector).
 
     Records, when ``stride > 0``, block means over ``stride`` steps of ``lambda`` (per-step
     growth rate over non-rattlers; only steps where it is defined count, ``out_nlam``
     says how many) and of ``V = sqrt(sum |v|²)``. Returns the status code.
     """
-    half_skin2 = 0.25 * skin * skin
+    half_skin = 0.5 * skin
+    _set_gravity(vec, sca, g[0], g[1])
     lam_sum = 0.0
     lam_n = 0
     v_sum = 0.0
     b = 0
     in_block = 0
+    zb = 0.0
     for _ in range(n_steps):
         step = counters[STEP] + 1
-        maxd2 = _kick_drift(vec, sca, ivec, dt, False, tangent)
-        wd2, zb, vb = _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt)
+        moved = _kick_drift(vec, sca, dt, half_skin, False, tangent)
+        wmoved, zb, vb = _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin)
         counters[STEP] = step
-        if max(maxd2, wd2) > half_skin2 or counters[FORCE_REBUILD] != 0:
-            if not _rebuild(
-                vec, sca, ivec, skin, pair_start, pair_j, cell_count, cell_start, counters
-            ):
+        if moved or wmoved or counters[FORCE_REBUILD] != 0:
+            if not _rebuild(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, cell_count,
+                            cell_start, clock, counters):  # fmt: skip
                 return _fail(info, LIST_OVERFLOW, -1, -1, step)
-        ncon = _drum_forces(
-            vec, sca, ivec, g[0], g[1], law, fw, zb, vb, pair_start, pair_j, tangent, info, step
-        )
+        ncon = _drum_forces(vec, sca, ivec, law, fw, zb, vb, pair_ij, pair_c, buf, touch,
+                            counters[N_PAIRS], tangent, tangent, info, step)  # fmt: skip
         if ncon < 0:
             return info[0]
         counters[CONTACT_SUM] += ncon
         counters[STEPS_RUN] += 1
-        v2 = _final_kick(vec, sca, ivec, dt, False, info, step)
-        if v2 < 0.0:
-            return info[0]
+        v2, bad = _final_kick(vec, sca, dt, False)
+        if bad:
+            return _fail(info, NONFINITE, _first_nonfinite(vec, sca), -1, step)
         if tangent:
             num, den = _tangent_kick(vec, sca, ivec, dt, info, step, counters)
             if num < 0.0:
@@ -753,87 +867,41 @@ def _drum_replica(
                 v_sum = 0.0
                 lam_sum = 0.0
                 lam_n = 0
+    if n_steps > 0 and not tangent:
+        _count_contacts(vec, sca, ivec, pair_ij, touch, counters[N_PAIRS], fw, zb)
     return OK
 
 
 @njit
-def _box_replica(
-    n_steps,
-    stride,
-    dt,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_j,
-    pair_xi,
-    old_start,
-    old_j,
-    old_xi,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    out_speed,
-    info,
-):
+def _box_replica(n_steps, stride, dt, g, law, wd, fw, skin, vec, sca, ivec, walls, pair_start,
+                 pair_ij, pair_c, pair_xi, old_start, old_j, old_xi, buf, touch, cell_count,
+                 cell_start, clock, counters, out_speed, info):  # fmt: skip
     """Advance one replica ``n_steps`` under the box law; block means of ``V`` if ``stride``."""
-    half_skin2 = 0.25 * skin * skin
+    half_skin = 0.5 * skin
+    _set_gravity(vec, sca, g[0], g[1])
     v_sum = 0.0
     b = 0
     in_block = 0
+    zb = 0.0
     for _ in range(n_steps):
         step = counters[STEP] + 1
-        maxd2 = _kick_drift(vec, sca, ivec, dt, True, False)
-        wd2, zb, vb = _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt)
+        moved = _kick_drift(vec, sca, dt, half_skin, True, False)
+        wmoved, zb, vb = _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin)
         counters[STEP] = step
-        if max(maxd2, wd2) > half_skin2 or counters[FORCE_REBUILD] != 0:
-            if not _rebuild_with_history(
-                vec,
-                sca,
-                ivec,
-                skin,
-                pair_start,
-                pair_j,
-                pair_xi,
-                old_start,
-                old_j,
-                old_xi,
-                cell_count,
-                cell_start,
-                counters,
-            ):
+        if moved or wmoved or counters[FORCE_REBUILD] != 0:
+            if not _rebuild_with_history(vec, sca, ivec, skin, pair_start, pair_ij, pair_c,
+                                         pair_xi, old_start, old_j, old_xi, cell_count,
+                                         cell_start, clock, counters):  # fmt: skip
                 return _fail(info, LIST_OVERFLOW, -1, -1, step)
-        ncon = _box_forces(
-            vec,
-            sca,
-            ivec,
-            g[0],
-            g[1],
-            law,
-            fw,
-            zb,
-            vb,
-            dt,
-            pair_start,
-            pair_j,
-            pair_xi,
-            info,
-            step,
-        )
+        ncon = _box_forces(vec, sca, ivec, law, fw, zb, vb, dt, pair_ij, pair_c, pair_xi, buf,
+                           touch, counters[N_PAIRS], False, info, step)  # fmt: skip
         if ncon < 0:
             return info[0]
         counters[CONTACT_SUM] += ncon
         counters[STEPS_RUN] += 1
-        v2 = _final_kick(vec, sca, ivec, dt, True, info, step)
-        if v2 < 0.0:
-            return info[0]
+        v2, bad = _final_kick(vec, sca, dt, True)
+        if bad:
+            return _fail(info, NONFINITE, _first_nonfinite(vec, sca), -1, step)
         if stride > 0:
             v_sum += math.sqrt(v2)
             in_block += 1
@@ -842,6 +910,8 @@ def _box_replica(
                 b += 1
                 in_block = 0
                 v_sum = 0.0
+    if n_steps > 0:
+        _count_contacts(vec, sca, ivec, pair_ij, touch, counters[N_PAIRS], fw, zb)
     return OK
 
 
@@ -849,31 +919,9 @@ def _box_replica(
 
 
 @njit
-def _refresh_replica(
-    law_id,
-    tangent,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_j,
-    pair_xi,
-    old_start,
-    old_j,
-    old_xi,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    dt,
-    info,
-):
+def _refresh_replica(law_id, tangent, g, law, wd, fw, skin, vec, sca, ivec, walls, pair_start,
+                     pair_ij, pair_c, pair_xi, old_start, old_j, old_xi, buf, touch, cell_count,
+                     cell_start, clock, counters, dt, info):  # fmt: skip
     """Place the walls, rebuild the list and evaluate forces at the current state.
 
     Uses full-step velocities and wall velocities at the current time; the shear history is
@@ -891,379 +939,138 @@ def _refresh_replica(
         zb = bottom_height(fw, t)
         vb = bottom_velocity(fw, t)
     step = counters[STEP]
+    _set_gravity(vec, sca, g[0], g[1])
+    # a non-finite state is reported before anything else
+    i = _first_nonfinite(vec, sca)
+    if i >= 0:
+        return _fail(info, NONFINITE, i, -1, step)
     if law_id == 0:
-        if not _rebuild(vec, sca, ivec, skin, pair_start, pair_j, cell_count, cell_start, counters):
+        if not _rebuild(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, cell_count,
+                        cell_start, clock, counters):  # fmt: skip
             return _fail(info, LIST_OVERFLOW, -1, -1, step)
-        ncon = _drum_forces(
-            vec, sca, ivec, g[0], g[1], law, fw, zb, vb, pair_start, pair_j, tangent, info, step
-        )
+        ncon = _drum_forces(vec, sca, ivec, law, fw, zb, vb, pair_ij, pair_c, buf, touch,
+                            counters[N_PAIRS], tangent, True, info, step)  # fmt: skip
     else:
-        if not _rebuild_with_history(
-            vec,
-            sca,
-            ivec,
-            skin,
-            pair_start,
-            pair_j,
-            pair_xi,
-            old_start,
-            old_j,
-            old_xi,
-            cell_count,
-            cell_start,
-            counters,
-        ):
+        if not _rebuild_with_history(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, pair_xi,
+                                     old_start, old_j, old_xi, cell_count, cell_start, clock,
+                                     counters):  # fmt: skip
             return _fail(info, LIST_OVERFLOW, -1, -1, step)
-        ncon = _box_forces(
-            vec,
-            sca,
-            ivec,
-            g[0],
-            g[1],
-            law,
-            fw,
-            zb,
-            vb,
-            0.0,
-            pair_start,
-            pair_j,
-            pair_xi,
-            info,
-            step,
-        )
+        ncon = _box_forces(vec, sca, ivec, law, fw, zb, vb, 0.0, pair_ij, pair_c, pair_xi, buf,
+                           touch, counters[N_PAIRS], True, info, step)  # fmt: skip
     if ncon < 0:
         return info[0]
     if tangent:
         tr = vec[T_POS]
         tv = vec[T_VEL]
         prev = sca[T_PREV]
+        mob = vec[MOB2]
         for i in range(tr.shape[0]):
-            prev[i] = tr[i, 0] ** 2 + tr[i, 1] ** 2 + tv[i, 0] ** 2 + tv[i, 1] ** 2
-    # a non-finite state is reported before the first step
-    pos = vec[POS]
-    vel = vec[VEL]
-    for i in range(pos.shape[0]):
-        if not (abs(vel[i, 0]) + abs(vel[i, 1]) + abs(pos[i, 0]) + abs(pos[i, 1]) < _BIG):
-            return _fail(info, NONFINITE, i, -1, step)
+            q = tr[i, 0] ** 2 + tr[i, 1] ** 2 + tv[i, 0] ** 2 + tv[i, 1] ** 2
+            prev[i] = q * mob[i, 0]
     return OK
+
+
+@njit
+def _tangent_init_replica(g, law, fw, vec, sca, ivec, pair_ij, pair_c, buf, touch, clock,
+                          counters, dt, info):  # fmt: skip
+    """Force perturbation of a freshly set tangent vector on the current list.
+
+    Forces, contact counts and touch flags are recomputed as a side effect (the caller
+    restores forces and counts); only ``T_FRC`` and ``T_PREV`` are meant to change.
+    """
+    t = _time(clock, counters, dt)
+    zb = 0.0
+    vb = 0.0
+    if fw[4] != 0.0:
+        zb = bottom_height(fw, t)
+        vb = bottom_velocity(fw, t)
+    _set_gravity(vec, sca, g[0], g[1])
+    _drum_forces(vec, sca, ivec, law, fw, zb, vb, pair_ij, pair_c, buf, touch,
+                 counters[N_PAIRS], True, True, info, counters[STEP])  # fmt: skip
+    tr = vec[T_POS]
+    tv = vec[T_VEL]
+    prev = sca[T_PREV]
+    mob = vec[MOB2]
+    for i in range(tr.shape[0]):
+        prev[i] = (tr[i, 0] ** 2 + tr[i, 1] ** 2 + tv[i, 0] ** 2 + tv[i, 1] ** 2) * mob[i, 0]
 
 
 # --------------------------------------------------------------------------- drivers
 
 
 @njit
-def drum_run_serial(
-    n_steps,
-    stride,
-    tangent,
-    dt,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_j,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    out_lam,
-    out_nlam,
-    out_speed,
-    info,
-):
+def drum_run_serial(n_steps, stride, tangent, dt, g, law, wd, fw, skin, vec, sca, ivec, walls,
+                    pair_start, pair_ij, pair_c, buf, touch, cell_count, cell_start, clock,
+                    counters, out_lam, out_nlam, out_speed, info):  # fmt: skip
     """Drum law over replicas one after another (arrays with a leading replica axis)."""
     for r in range(vec.shape[0]):
         _drum_replica(
-            n_steps,
-            stride,
-            tangent,
-            dt,
-            g,
-            law,
-            wd,
-            fw,
-            skin,
-            vec[r],
-            sca[r],
-            ivec[r],
-            walls[r],
-            pair_start[r],
-            pair_j[r],
-            cell_count[r],
-            cell_start[r],
-            clock[r],
-            counters[r],
-            out_lam[r],
-            out_nlam[r],
-            out_speed[r],
-            info[r],
-        )
+            n_steps, stride, tangent, dt, g, law, wd, fw, skin, vec[r], sca[r], ivec[r],
+            walls[r], pair_start[r], pair_ij[r], pair_c[r], buf[r], touch[r], cell_count[r],
+            cell_start[r], clock[r], counters[r], out_lam[r], out_nlam[r], out_speed[r], info[r],
+        )  # fmt: skip
 
 
 @pnjit
-def drum_run_parallel(
-    n_steps,
-    stride,
-    tangent,
-    dt,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_j,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    out_lam,
-    out_nlam,
-    out_speed,
-    info,
-):
+def drum_run_parallel(n_steps, stride, tangent, dt, g, law, wd, fw, skin, vec, sca, ivec, walls,
+                      pair_start, pair_ij, pair_c, buf, touch, cell_count, cell_start, clock,
+                      counters, out_lam, out_nlam, out_speed, info):  # fmt: skip
     """Drum law over replicas under ``prange`` (each iteration writes only its replica)."""
     for r in numba_prange(vec.shape[0]):
         _drum_replica(
-            n_steps,
-            stride,
-            tangent,
-            dt,
-            g,
-            law,
-            wd,
-            fw,
-            skin,
-            vec[r],
-            sca[r],
-            ivec[r],
-            walls[r],
-            pair_start[r],
-            pair_j[r],
-            cell_count[r],
-            cell_start[r],
-            clock[r],
-            counters[r],
-            out_lam[r],
-            out_nlam[r],
-            out_speed[r],
-            info[r],
-        )
+            n_steps, stride, tangent, dt, g, law, wd, fw, skin, vec[r], sca[r], ivec[r],
+            walls[r], pair_start[r], pair_ij[r], pair_c[r], buf[r], touch[r], cell_count[r],
+            cell_start[r], clock[r], counters[r], out_lam[r], out_nlam[r], out_speed[r], info[r],
+        )  # fmt: skip
 
 
 @njit
-def box_run_serial(
-    n_steps,
-    stride,
-    dt,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_j,
-    pair_xi,
-    old_start,
-    old_j,
-    old_xi,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    out_speed,
-    info,
-):
+def box_run_serial(n_steps, stride, dt, g, law, wd, fw, skin, vec, sca, ivec, walls, pair_start,
+                   pair_ij, pair_c, pair_xi, old_start, old_j, old_xi, buf, touch, cell_count,
+                   cell_start, clock, counters, out_speed, info):  # fmt: skip
     """Box law over replicas one after another."""
     for r in range(vec.shape[0]):
         _box_replica(
-            n_steps,
-            stride,
-            dt,
-            g,
-            law,
-            wd,
-            fw,
-            skin,
-            vec[r],
-            sca[r],
-            ivec[r],
-            walls[r],
-            pair_start[r],
-            pair_j[r],
-            pair_xi[r],
-            old_start[r],
-            old_j[r],
-            old_xi[r],
-            cell_count[r],
-            cell_start[r],
-            clock[r],
-            counters[r],
-            out_speed[r],
+            n_steps, stride, dt, g, law, wd, fw, skin, vec[r], sca[r], ivec[r], walls[r],
+            pair_start[r], pair_ij[r], pair_c[r], pair_xi[r], old_start[r], old_j[r], old_xi[r],
+            buf[r], touch[r], cell_count[r], cell_start[r], clock[r], counters[r], out_speed[r],
             info[r],
-        )
+        )  # fmt: skip
 
 
 @pnjit
-def box_run_parallel(
-    n_steps,
-    stride,
-    dt,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_j,
-    pair_xi,
-    old_start,
-    old_j,
-    old_xi,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    out_speed,
-    info,
-):
+def box_run_parallel(n_steps, stride, dt, g, law, wd, fw, skin, vec, sca, ivec, walls,
+                     pair_start, pair_ij, pair_c, pair_xi, old_start, old_j, old_xi, buf, touch,
+                     cell_count, cell_start, clock, counters, out_speed, info):  # fmt: skip
     """Box law over replicas under ``prange``."""
     for r in numba_prange(vec.shape[0]):
         _box_replica(
-            n_steps,
-            stride,
-            dt,
-            g,
-            law,
-            wd,
-            fw,
-            skin,
-            vec[r],
-            sca[r],
-            ivec[r],
-            walls[r],
-            pair_start[r],
-            pair_j[r],
-            pair_xi[r],
-            old_start[r],
-            old_j[r],
-            old_xi[r],
-            cell_count[r],
-            cell_start[r],
-            clock[r],
-            counters[r],
-            out_speed[r],
+            n_steps, stride, dt, g, law, wd, fw, skin, vec[r], sca[r], ivec[r], walls[r],
+            pair_start[r], pair_ij[r], pair_c[r], pair_xi[r], old_start[r], old_j[r], old_xi[r],
+            buf[r], touch[r], cell_count[r], cell_start[r], clock[r], counters[r], out_speed[r],
             info[r],
-        )
+        )  # fmt: skip
 
 
 @njit
-def refresh_serial(
-    law_id,
-    tangent,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_j,
-    pair_xi,
-    old_start,
-    old_j,
-    old_xi,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    dt,
-    info,
-):
+def refresh_serial(law_id, tangent, g, law, wd, fw, skin, vec, sca, ivec, walls, pair_start,
+                   pair_ij, pair_c, pair_xi, old_start, old_j, old_xi, buf, touch, cell_count,
+                   cell_start, clock, counters, dt, info):  # fmt: skip
     """:func:`_refresh_replica` over replicas."""
     for r in range(vec.shape[0]):
         _refresh_replica(
-            law_id,
-            tangent,
-            g,
-            law,
-            wd,
-            fw,
-            skin,
-            vec[r],
-            sca[r],
-            ivec[r],
-            walls[r],
-            pair_start[r],
-            pair_j[r],
-            pair_xi[r],
-            old_start[r],
-            old_j[r],
-            old_xi[r],
-            cell_count[r],
-            cell_start[r],
-            clock[r],
-            counters[r],
-            dt,
-            info[r],
-        )
+            law_id, tangent, g, law, wd, fw, skin, vec[r], sca[r], ivec[r], walls[r],
+            pair_start[r], pair_ij[r], pair_c[r], pair_xi[r], old_start[r], old_j[r], old_xi[r],
+            buf[r], touch[r], cell_count[r], cell_start[r], clock[r], counters[r], dt, info[r],
+        )  # fmt: skip
 
 
 @njit
-def tangent_forces_serial(
-    g, law, fw, vec, sca, ivec, pair_start, pair_j, clock, counters, dt, info
-):
-    """Evaluate drum-law forces with their perturbation on the current list (no rebuild).
-
-    The caller restores forces and contact counts afterwards; only ``T_FRC`` and ``T_PREV``
-    are meant to change.
-    """
+def tangent_init_serial(g, law, fw, vec, sca, ivec, pair_ij, pair_c, buf, touch, clock,
+                        counters, dt, info):  # fmt: skip
+    """:func:`_tangent_init_replica` over replicas."""
     for r in range(vec.shape[0]):
-        t = _time(clock[r], counters[r], dt)
-        zb = 0.0
-        vb = 0.0
-        if fw[4] != 0.0:
-            zb = bottom_height(fw, t)
-            vb = bottom_velocity(fw, t)
-        _drum_forces(
-            vec[r],
-            sca[r],
-            ivec[r],
-            g[0],
-            g[1],
-            law,
-            fw,
-            zb,
-            vb,
-            pair_start[r],
-            pair_j[r],
-            True,
-            info[r],
-            counters[r][STEP],
-        )
-        tr = vec[r][T_POS]
-        tv = vec[r][T_VEL]
-        prev = sca[r][T_PREV]
-        for i in range(tr.shape[0]):
-            prev[i] = tr[i, 0] ** 2 + tr[i, 1] ** 2 + tv[i, 0] ** 2 + tv[i, 1] ** 2
+        _tangent_init_replica(
+            g, law, fw, vec[r], sca[r], ivec[r], pair_ij[r], pair_c[r], buf[r], touch[r],
+            clock[r], counters[r], dt, info[r],
+        )  # fmt: skip

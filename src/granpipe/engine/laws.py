@@ -84,21 +84,17 @@ def drum_force(nx, ny, delta, vx, vy, k_n, gamma_n, gamma_t, mu):
     regime : int
         NO_FRICTION, VISCOUS or COULOMB (which smooth piece applies).
     """
+    # written with selects only, so that the pair pass vectorises
     vn = vx * nx + vy * ny
     u = vy * nx - vx * ny
     f_n = -k_n * delta - gamma_n * vn
-    if f_n <= 0.0:
-        f_t = 0.0
-        regime = NO_FRICTION
-    else:
-        cap = mu * f_n
-        visc = gamma_t * abs(u)
-        if visc < cap:
-            f_t = -gamma_t * u
-            regime = VISCOUS
-        else:
-            f_t = -cap if u > 0.0 else cap
-            regime = COULOMB
+    cap = mu * f_n
+    cap = cap if cap > 0.0 else 0.0
+    visc = gamma_t * abs(u)
+    coulomb = visc >= cap
+    mag = cap if coulomb else visc
+    f_t = -mag if u > 0.0 else mag
+    regime = NO_FRICTION if f_n <= 0.0 else (COULOMB if coulomb else VISCOUS)
     fx = f_n * nx - f_t * ny
     fy = f_n * ny + f_t * nx
     return fx, fy, f_n, f_t, regime
@@ -134,12 +130,8 @@ def drum_force_jvp(
     dvn = dvx * nx + dvy * ny + psi * u
     du = dvy * nx - dvx * ny - psi * vn
     dfn = -k_n * (ddx * nx + ddy * ny) - gamma_n * dvn
-    if regime == VISCOUS:
-        dft = -gamma_t * du
-    elif regime == COULOMB:
-        dft = -mu * dfn if u > 0.0 else mu * dfn
-    else:
-        dft = 0.0
+    dcoul = -mu * dfn if u > 0.0 else mu * dfn
+    dft = -gamma_t * du if regime == VISCOUS else (dcoul if regime == COULOMB else 0.0)
     a = dfn - f_t * psi  # along n
     b = f_n * psi + dft  # along t
     return a * nx - b * ny, a * ny + b * nx
@@ -207,12 +199,11 @@ def box_force(
     f_t = -kappa_t * xi_new - damp
     limit = mu * abs(f_n)
     slip = abs(f_t) > limit
-    if slip:
-        f_t = limit if f_t > 0.0 else -limit
-        if kappa_t > 0.0:
-            xi_new = -(f_t + damp) / kappa_t
-        else:
-            xi_new = 0.0
+    # selects only (the pair pass vectorises); kappa_t = 0 keeps no elastic shear
+    capped = limit if f_t > 0.0 else -limit
+    reset = -(capped + damp) / kappa_t if kappa_t > 0.0 else 0.0
+    xi_new = reset if slip else xi_new
+    f_t = capped if slip else f_t
     fx = f_n * nx - f_t * ny
     fy = f_n * ny + f_t * nx
     return fx, fy, -lever_i * f_t, -lever_j * f_t, xi_new, f_n, f_t, slip
@@ -265,12 +256,9 @@ def box_force_jvp(
     dlev = 0.5 * dr
     dvt = dvy * nx - dvx * ny - psi * vn - dlev * (w_i + w_j) - lever_i * dw_i - lever_j * dw_j
     dfn = -kappa_n * dr - gamma_n * m_eff * dvn
-    if slip:
-        sgn = 1.0 if f_t > 0.0 else -1.0
-        sfn = 1.0 if f_n > 0.0 else -1.0
-        dft = sgn * mu * sfn * dfn
-    else:
-        dft = -(kappa_t * dt + gamma_t * m_eff) * dvt
+    sgn = 1.0 if f_t > 0.0 else -1.0
+    sfn = 1.0 if f_n > 0.0 else -1.0
+    dft = sgn * mu * sfn * dfn if slip else -(kappa_t * dt + gamma_t * m_eff) * dvt
     a = dfn - f_t * psi
     b = f_n * psi + dft
     dtau_i = -dlev * f_t - lever_i * dft

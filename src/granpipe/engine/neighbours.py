@@ -67,7 +67,7 @@ def build_pairs(
         Scratch.
     pair_start : (N + 1,) int64
         Out: CSR offsets.
-    pair_j : (P,) int32
+    pair_j : (P,) uint32
         Out: partners, sorted within each row; ``P`` = capacity.
 
     Returns

@@ -61,9 +61,8 @@ class Ensemble:
         for key, val in first.items():
             if isinstance(val, np.ndarray) and val.ndim >= 1 and key not in _SHARED_KEYS:
                 parts = [s._s[key] for s in states]
-                width = max(p.shape[1] for p in parts) if val.ndim >= 2 else None
-                if width is not None and any(p.shape[1] != width for p in parts):
-                    parts = [_pad(p, width) for p in parts]
+                width = max(p.shape[-1] for p in parts)
+                parts = [_pad(p, width) for p in parts]
                 storage[key] = np.ascontiguousarray(np.concatenate(parts, axis=0))
             else:
                 storage[key] = val
@@ -92,6 +91,46 @@ class Ensemble:
         return type(self)(
             {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self._s.items()}
         )
+
+    def to_arrays(self) -> dict:
+        """Everything a run needs to continue exactly, as ``{name: numpy array}`` (copies).
+
+        Scalars come as 0-d arrays, so the dict can go straight into netCDF variables or
+        ``np.savez``; :meth:`from_arrays` rebuilds the state (or ensemble). The layout is
+        the engine's own (``engine_format``); treat the arrays as opaque.
+        """
+        out = {"engine_format": np.asarray(_FORMAT)}
+        for key, val in self._s.items():
+            if isinstance(val, np.ndarray):
+                out[key] = val.copy()
+            else:
+                out[key] = np.asarray(val)
+        out["single"] = np.asarray(self._single)
+        return out
+
+    @staticmethod
+    def from_arrays(arrays):
+        """Rebuild a :class:`State` or :class:`Ensemble` saved by :meth:`to_arrays`."""
+        fmt = int(np.asarray(arrays.get("engine_format", -1)))
+        if fmt != _FORMAT:
+            raise ConfigError(f"engine state format {fmt} is not {_FORMAT}; rerun to regenerate")
+        storage = {}
+        for key, val in arrays.items():
+            if key in ("engine_format", "single"):
+                continue
+            a = np.asarray(val)
+            if key in ("dt", "skin"):
+                storage[key] = float(a)
+            elif key == "law_id":
+                storage[key] = int(a)
+            elif key in ("has_spin", "has_tangent"):
+                storage[key] = bool(a)
+            elif key == "centre":
+                storage[key] = tuple(float(c) for c in a)
+            else:
+                storage[key] = np.ascontiguousarray(a).copy()
+        cls = State if bool(np.asarray(arrays["single"])) else Ensemble
+        return cls(storage)
 
     # -- views --------------------------------------------------------------------------
     def _v(self, arr):
@@ -242,7 +281,7 @@ class Ensemble:
             "steps_run": c[:, K.STEPS_RUN].copy(),
             "rebuilds": c[:, K.N_REBUILDS].copy(),
             "pairs": c[:, K.N_PAIRS].copy(),
-            "pair_capacity": self._s["pair_j"].shape[1],
+            "pair_capacity": self._s["pair_xi"].shape[1],
             "mean_contacts": np.where(steps > 0, c[:, K.CONTACT_SUM] / np.maximum(steps, 1), 0.0),
         }
         if self._single:
@@ -265,12 +304,20 @@ class State(Ensemble):
 
 # storage entries shared by all replicas (not stacked)
 _SHARED_KEYS = {"dt", "law_id", "has_spin", "has_tangent", "centre", "skin"}
+# storage entries whose last axis is the pair capacity
+_PAIR_KEYS = ("pair_ij", "pair_c", "pair_xi", "old_j", "old_xi", "buf", "touch")
 
 
 def _pad(arr, width):
-    out = np.zeros(arr.shape[:1] + (width,) + arr.shape[2:], dtype=arr.dtype)
-    out[:, : arr.shape[1]] = arr
+    """Zero-pad the last axis (pair capacity, wall count) to ``width``."""
+    if arr.shape[-1] == width:
+        return arr
+    out = np.zeros(arr.shape[:-1] + (width,), dtype=arr.dtype)
+    out[..., : arr.shape[-1]] = arr
     return out
+
+
+_FORMAT = 2
 
 
 @dataclass(frozen=True)
@@ -453,7 +500,10 @@ class Simulation:
         centre = (
             np.zeros(2) if self.wall_disks is None else np.asarray(self.wall_disks.centre, float)
         )
-        vec[:, K.WALL_REF] = np.where(wall[..., None], pos - centre, 0.0)
+        ref = np.where(wall[..., None], pos - centre, 0.0)
+        vec[:, K.WALL_REF] = ref
+        vec[:, K.IM2] = inv_mass[..., None]
+        vec[:, K.MOB2] = np.where(wall, 0.0, 1.0)[..., None]
         sca[:, K.RADIUS] = rad
         sca[:, K.INV_MASS] = inv_mass
         sca[:, K.INV_INERTIA] = inv_inertia
@@ -461,6 +511,7 @@ class Simulation:
         ivec[:, K.IS_WALL] = wall
         clock = np.zeros((r_count, K.NCLOCK))
         clock[:, K.T_ORIGIN] = float(time)
+        clock[:, K.WALL_RMAX] = np.sqrt((ref**2).sum(-1)).max(-1)
         counters = np.zeros((r_count, K.NCOUNT), dtype=np.int64)
         counters[:, K.N_WALLS] = nw
         storage = {
@@ -469,11 +520,14 @@ class Simulation:
             "ivec": ivec,
             "walls": walls,
             "pair_start": np.zeros((r_count, n + 1), dtype=np.int64),
-            "pair_j": np.zeros((r_count, cap), dtype=np.int32),
+            "pair_ij": np.zeros((r_count, 2, cap), dtype=np.uint32),
+            "pair_c": np.zeros((r_count, K.NPC, cap)),
             "pair_xi": np.zeros((r_count, cap)),
             "old_start": np.zeros((r_count, n + 1), dtype=np.int64),
-            "old_j": np.zeros((r_count, cap), dtype=np.int32),
+            "old_j": np.zeros((r_count, cap), dtype=np.uint32),
             "old_xi": np.zeros((r_count, cap)),
+            "buf": np.zeros((r_count, K.NB, cap)),
+            "touch": np.zeros((r_count, cap), dtype=np.uint8),
             "cell_count": np.zeros((r_count, ccap + 1), dtype=np.int64),
             "cell_start": np.zeros((r_count, ccap + 1), dtype=np.int64),
             "clock": clock,
@@ -509,11 +563,11 @@ class Simulation:
         if skin != s["skin"]:
             rad = s["sca"][:, K.RADIUS]
             cap = max(pair_capacity(rad[r], skin) for r in range(rad.shape[0]))
-            if cap > s["pair_j"].shape[1]:
-                npair = s["pair_j"].shape[1]
-                for key in ("pair_j", "pair_xi", "old_j", "old_xi"):
-                    grown = np.zeros((s[key].shape[0], cap), dtype=s[key].dtype)
-                    grown[:, :npair] = s[key]
+            if cap > s["pair_xi"].shape[1]:
+                for key in _PAIR_KEYS:
+                    old = s[key]
+                    grown = np.zeros(old.shape[:-1] + (cap,), dtype=old.dtype)
+                    grown[..., : old.shape[-1]] = old
                     s[key] = grown
             s["skin"] = skin
             s["counters"][:, K.FORCE_REBUILD] = 1
@@ -554,30 +608,11 @@ class Simulation:
         g, law, wd, fw = self._params()
         s = state._s
         K.refresh_serial(
-            self.law.law_id,
-            bool(s["has_tangent"]),
-            g,
-            law,
-            wd,
-            fw,
-            skin,
-            s["vec"],
-            s["sca"],
-            s["ivec"],
-            s["walls"],
-            s["pair_start"],
-            s["pair_j"],
-            s["pair_xi"],
-            s["old_start"],
-            s["old_j"],
-            s["old_xi"],
-            s["cell_count"],
-            s["cell_start"],
-            s["clock"],
-            s["counters"],
-            self.dt,
-            s["info"],
-        )
+            self.law.law_id, bool(s["has_tangent"]), g, law, wd, fw, skin, s["vec"], s["sca"],
+            s["ivec"], s["walls"], s["pair_start"], s["pair_ij"], s["pair_c"], s["pair_xi"],
+            s["old_start"], s["old_j"], s["old_xi"], s["buf"], s["touch"], s["cell_count"],
+            s["cell_start"], s["clock"], s["counters"], self.dt, s["info"],
+        )  # fmt: skip
         self._raise(state)
 
     def set_tangent(self, state, dr, dv) -> None:
@@ -608,22 +643,14 @@ class Simulation:
         g, law, wd, fw = self._params()
         saved_f = s["vec"][:, K.FRC].copy()
         saved_c = s["ivec"][:, K.CONTACTS].copy()
-        K.tangent_forces_serial(
-            g,
-            law,
-            fw,
-            s["vec"],
-            s["sca"],
-            s["ivec"],
-            s["pair_start"],
-            s["pair_j"],
-            s["clock"],
-            s["counters"],
-            self.dt,
-            s["info"],
-        )
+        saved_t = s["touch"].copy()
+        K.tangent_init_serial(
+            g, law, fw, s["vec"], s["sca"], s["ivec"], s["pair_ij"], s["pair_c"], s["buf"],
+            s["touch"], s["clock"], s["counters"], self.dt, s["info"],
+        )  # fmt: skip
         s["vec"][:, K.FRC] = saved_f
         s["ivec"][:, K.CONTACTS] = saved_c
+        s["touch"][...] = saved_t
         self._raise(state)
 
     def random_tangent(self, state, rng, fraction=0.1) -> None:
@@ -698,59 +725,20 @@ class Simulation:
             nlam = np.zeros((r_count, blocks), dtype=np.int64)
             fn = K.drum_run_parallel if par else K.drum_run_serial
             fn(
-                n_steps,
-                stride,
-                bool(tangent),
-                self.dt,
-                g,
-                law,
-                wd,
-                fw,
-                skin,
-                s["vec"],
-                s["sca"],
-                s["ivec"],
-                s["walls"],
-                s["pair_start"],
-                s["pair_j"],
-                s["cell_count"],
-                s["cell_start"],
-                s["clock"],
-                s["counters"],
-                lam,
-                nlam,
-                speed,
-                s["info"],
-            )
+                n_steps, stride, bool(tangent), self.dt, g, law, wd, fw, skin, s["vec"],
+                s["sca"], s["ivec"], s["walls"], s["pair_start"], s["pair_ij"], s["pair_c"],
+                s["buf"], s["touch"], s["cell_count"], s["cell_start"], s["clock"],
+                s["counters"], lam, nlam, speed, s["info"],
+            )  # fmt: skip
         else:
             lam = nlam = None
             fn = K.box_run_parallel if par else K.box_run_serial
             fn(
-                n_steps,
-                stride,
-                self.dt,
-                g,
-                law,
-                wd,
-                fw,
-                skin,
-                s["vec"],
-                s["sca"],
-                s["ivec"],
-                s["walls"],
-                s["pair_start"],
-                s["pair_j"],
-                s["pair_xi"],
-                s["old_start"],
-                s["old_j"],
-                s["old_xi"],
-                s["cell_count"],
-                s["cell_start"],
-                s["clock"],
-                s["counters"],
-                speed,
-                s["info"],
-            )
+                n_steps, stride, self.dt, g, law, wd, fw, skin, s["vec"], s["sca"], s["ivec"],
+                s["walls"], s["pair_start"], s["pair_ij"], s["pair_c"], s["pair_xi"],
+                s["old_start"], s["old_j"], s["old_xi"], s["buf"], s["touch"], s["cell_count"],
+                s["cell_start"], s["clock"], s["counters"], speed, s["info"],
+            )  # fmt: skip
         self._raise(state)
         # block b holds steps b*stride+1 .. (b+1)*stride after the start
         centre = (np.arange(blocks) * stride + 0.5 * (stride + 1)) * self.dt
