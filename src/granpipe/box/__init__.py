@@ -1,1 +1,24 @@
-"""granpipe.box."""
+"""granpipe.box: the vibrated-box study (SPEC §3; Fortini & Huang 2015).
+
+Modules, in the order of the protocol:
+
+* :mod:`~granpipe.box.model` — Appendix A in numbers: the engine's box law with Table I,
+  Δt = t_c/50 (Eq. A5) rounded to whole sampling phases, the plate drive
+  ``z_b = z0 + A r(t) sin(ωt + φ)`` with Γ = A (ω = 1, g = 1) and K_m = Γ².
+* :mod:`~granpipe.box.lattice` — crystal sites (orientation A, rows ``spanning`` 20/19 or
+  ``inset`` 19/19) and random sequential placement.
+* :mod:`~granpipe.box.prepare` — crystal relaxation, random fall and settling (Sec. III).
+* :mod:`~granpipe.box.protocol` — one run part: smooth start, transient, measured periods
+  sampled at N_k phases (tracers, plate, gap, T_g), positions at every cycle start;
+  exact continuation across parts.
+* :mod:`~granpipe.box.measures` — per point: s_c, s_b (SPEC's correction), detachment,
+  T_g, p_s, ψ6 at measurement start, launch speeds.
+* :mod:`~granpipe.box.fitting` — thresholds in Γ, segmented T_g* regions, Arrhenius E_b,
+  summary rows.
+* :mod:`~granpipe.box.stages` — the file-to-file stages behind ``granpipe box <stage>``
+  (:mod:`~granpipe.box.cli`); :mod:`~granpipe.box.layout` — file names, parameter points
+  and the config subset of each stage (used by ``workflow/rules/box.smk`` and
+  ``granpipe status``).
+
+Figures: :mod:`granpipe.figures.box`.
+"""

@@ -56,6 +56,7 @@ __all__ = [
 # The engine has no public save/restore of a State yet; these two functions read and
 # write its storage dict (``State._s``) so that a run can continue across files exactly.
 _STATE_SCALARS = ("dt", "skin", "has_tangent")
+_POS = 0  # row of the positions in the engine's per-disk vector storage (kernels.POS)
 
 
 def state_arrays(state) -> dict[str, np.ndarray]:
@@ -244,8 +245,9 @@ def run_part(
     else:
         if previous_state is None or tracers is None:
             raise ValueError(f"part {part} needs the previous part's state and tracers")
-        n = int(np.asarray(previous_state["vec"]).shape[2])
-        state = restore_state(sim, np.zeros((n, 2)), previous_state)
+        saved_positions = np.asarray(previous_state["vec"])[0, _POS]
+        n = saved_positions.shape[0]
+        state = restore_state(sim, saved_positions, previous_state)
         expected = (n_tr + periods[0]) * steps_per + offset_steps
         have = round(state.time / dt)
         if have != expected:

@@ -1,0 +1,105 @@
+"""Box study throughput and start-up hazards (SPEC §3), printed, never asserted.
+
+    .venv/bin/python benchmarks/box.py            # cost per particle-step, N = 200, 400
+    .venv/bin/python benchmarks/box.py --hazards  # launch speeds and ψ6 at measurement start
+
+Cost: ns per particle-step of the box law with walls and a driven plate (Γ = 2, after
+one period of drive), and the projected wall time of one default-scale point.
+
+Hazards: for the crystal start (rows ``spanning`` 20/19 and ``inset`` 19/19) and the
+random start, each start-up (Eq. (1) as printed: impulsive; ``sine`` with a 2-period
+ramp; ``bottom`` turning point without ramp), with μ = 0.6 and frictionless side walls:
+the largest bed centre-of-mass and disk upward speeds over the plate's top speed Aω,
+and the bulk |ψ6| when the measurement begins after 6 periods.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from granpipe.box import model, prepare, protocol
+
+PHYSICS = dict(
+    Lx=20.0, kappa_n=1e6, kappa_t=1e4, gamma_n=100.0, gamma_t=100.0, mu=0.6, mu_bottom=0.6,
+    mu_side_walls=0.6, omega=1.0, steps_per_contact=50.0,
+)  # fmt: skip
+INIT = dict(
+    crystal_rows="spanning", crystal_noise=1e-6, crystal_relax_time=1.0,
+    random_packing_fraction=0.3, settle_kinetic_energy=1e-8, settle_max_time=60.0,
+)  # fmt: skip
+
+
+def cost(n_ls=(10, 20), gamma=2.0, steps=30000):
+    from granpipe.box.prepare import box_simulation, disk_arrays
+    from granpipe.box.protocol import _walls
+
+    proto = dict(start_phase="sine", ramp_periods=0.0, transient_periods=0, phases_per_period=64)
+    drive = model.drive_for(PHYSICS, proto, gamma)
+    steps_per, dt = model.steps_per_period(PHYSICS, 64)
+    print(f"dt = {dt:.6e} t0, {steps_per} steps per period (t_c/dt = "
+          f"{model.contact_time(PHYSICS) / dt:.3f})")  # fmt: skip
+    for n_l in n_ls:
+        n = 20 * n_l
+        prep = prepare.prepare(PHYSICS, INIT, n, "crystal", np.random.default_rng(1))
+        sim = box_simulation(PHYSICS, dt, _walls(PHYSICS, drive))
+        radii, masses = disk_arrays(n)
+        st = sim.new_state(prep.positions, radii, masses)
+        sim.run(st, steps_per)  # one period of drive: the bed is bouncing
+        t0 = time.perf_counter()
+        sim.run(st, steps)
+        el = time.perf_counter() - t0
+        ns = 1e9 * el / (steps * n)
+        per_period = ns * 1e-9 * n * steps_per
+        print(
+            f"N_l = {n_l:3d} (N = {n:5d}): {ns:6.1f} ns per particle-step, "
+            f"{per_period:6.2f} s per period; a default point (6 + 10 periods): "
+            f"{16 * per_period:6.0f} s"
+        )
+
+
+def hazards(gamma=1.5, n_l=10, transient=6):
+    cases = [
+        ("crystal", "spanning", "sine", 0.0, 0.6),
+        ("crystal", "spanning", "sine", 2.0, 0.6),
+        ("crystal", "spanning", "bottom", 0.0, 0.6),
+        ("crystal", "inset", "sine", 2.0, 0.6),
+        ("crystal", "spanning", "sine", 2.0, 0.0),
+        ("random", "spanning", "sine", 2.0, 0.6),
+        ("random", "spanning", "sine", 0.0, 0.6),
+    ]
+    print(f"Γ = {gamma}, N_l = {n_l}, transient {transient} periods")
+    print("start    rows      start_phase ramp mu_side | v_cm/Aω v_disk/Aω | psi6 prep  start")
+    for kind, rows, phase, ramp, mu_side in cases:
+        phys = {**PHYSICS, "mu_side_walls": mu_side}
+        init = {**INIT, "crystal_rows": rows}
+        prep = prepare.prepare(phys, init, 20 * n_l, kind, np.random.default_rng(3))
+        proto = dict(
+            start_phase=phase, ramp_periods=ramp, transient_periods=transient,
+            phases_per_period=64,
+        )  # fmt: skip
+        res = protocol.run_part(
+            phys, proto, gamma, 0, range(1), start_positions=prep.positions,
+            start_velocities=prep.velocities, start_spins=prep.spins,
+        )  # fmt: skip
+        tr = res.transient
+        aw = res.drive.amplitude * res.drive.omega
+        print(
+            f"{kind:8s} {rows:9s} {phase:11s} {ramp:4.1f} {mu_side:7.1f} | "
+            f"{tr['vz_cm'].max() / aw:7.2f} {tr['max_vz'].max() / aw:9.2f} | "
+            f"{prepare.bulk_psi6(prep.positions, 20.0):.3f} "
+            f"{prepare.bulk_psi6(res.cycle_positions[0].astype(float), 20.0):.3f}"
+        )
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--hazards", action="store_true")
+    ap.add_argument("--gamma", type=float, default=None)
+    args = ap.parse_args()
+    if args.hazards:
+        hazards(gamma=args.gamma or 1.5)
+    else:
+        cost(gamma=args.gamma or 2.0)

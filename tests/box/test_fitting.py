@@ -1,0 +1,141 @@
+"""The box fits on synthetic point tables with known thresholds, breakpoints and barriers.
+
+The analysis helpers check the generic regressions; here the glue: grouping by
+(init, N_l), criteria and scales, regions from the T_g* breakpoints handed to the
+Arrhenius fits, summary rows next to the paper's numbers, and intervals that cover the
+truth on noisy data.
+"""
+
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from granpipe.analysis.summary import summary_frame
+from granpipe.box import fitting
+
+DETECTION = {
+    "convection_s_c": 1.0,
+    "bouncing_s_b": 1.0 / 30.0,
+    "detachment_gap": 1e-3,
+    "detachment_fraction": 0.02,
+}
+FITS = {"breakpoints_random": 1, "breakpoints_crystal": 2, "confidence": 0.95,
+        "bootstrap": 200, "N_l": None}  # fmt: skip
+
+GAMMA = np.round(np.linspace(0.8, 4.0, 17), 3)
+K_BREAK = {"random": [3.3], "crystal": [2.0, 6.0]}
+SLOPES = {"random": [1.0, 2.5], "crystal": [0.5, 3.0, 1.2]}
+E_B = {"random": {"all": 7.0}, "crystal": {"A2": 30.0, "B": 7.0}}
+
+
+def _tg(init, K):
+    """Continuous piecewise power law T_g*(K_m) through T_g*(1) = 0.01."""
+    x = np.log(K)
+    y = math.log(0.01) + SLOPES[init][0] * x
+    for k, b in enumerate(np.log(K_BREAK[init])):
+        y = y + (SLOPES[init][k + 1] - SLOPES[init][k]) * np.clip(x - b, 0, None)
+    return np.exp(y)
+
+
+def _table(seed):
+    rng = np.random.default_rng(seed)
+    rows = []
+    for init in ("random", "crystal"):
+        for n_l in (20, 40):
+            for g in GAMMA:
+                K = g * g
+                tg = _tg(init, K)
+                trials = 20000
+                if init == "random":
+                    p = 0.5 * math.exp(-7.0 / K)
+                elif K <= K_BREAK["crystal"][0]:
+                    p = 0.0  # region A1: no slip at all
+                elif K <= K_BREAK["crystal"][1]:
+                    # continuous with region B at K_m = 6
+                    p = 0.1 * math.exp(-7.0 / 6.0) * math.exp(-30.0 / K + 30.0 / 6.0)
+                else:
+                    p = 0.1 * math.exp(-7.0 / K)
+                n_slips = rng.binomial(trials, p)
+                rows.append(
+                    {
+                        "point": f"N_l={n_l},Gamma={g!r},init={init}",
+                        "N_l": n_l,
+                        "N": 20 * n_l,
+                        "Gamma": g,
+                        "K_m": K,
+                        "init": init,
+                        "replicas": 1,
+                        "measured_periods": 200,
+                        "wall_seconds": 10.0,
+                        "steps": 1000,
+                        "ns_per_particle_step": 50.0,
+                        # s_b grows exponentially through σ/30 at Γ = 1.1; s_c through σ
+                        # at Γ = 1.9 (random) / 2.7 (crystal)
+                        "s_b": (1 / 30) * math.exp(4.0 * (g - 1.1)),
+                        "s_c": math.exp(2.0 * (g - (1.9 if init == "random" else 2.7))),
+                        "detachment_fraction": max(0.0, 0.3 * (g - 1.0)),
+                        "T_g": tg * math.exp(0.05 * rng.standard_normal()),
+                        "T_g_sem": 0.05 * tg,
+                        "p_s": n_slips / trials,
+                        "p_s_sem": math.sqrt(max(n_slips, 1)) / trials,
+                        "n_slips": n_slips,
+                        "n_trials": trials,
+                    }
+                )
+    return pd.DataFrame(rows)
+
+
+def test_thresholds_interpolate_between_bracketing_grid_points():
+    ths = fitting.thresholds_table(_table(0), DETECTION)
+    assert len(ths) == 2 * 2 * 3
+    for r in ths.itertuples():
+        assert r.status == "crossed" and r.Gamma_low < r.Gamma < r.Gamma_high
+        assert r.Gamma_high - r.Gamma_low == pytest.approx(0.2)
+    by = {(r.init, r.N_l, r.criterion): r.Gamma for r in ths.itertuples()}
+    # log interpolation of an exponential measure is exact
+    assert by[("random", 20, "bouncing")] == pytest.approx(1.1, abs=1e-9)
+    assert by[("random", 40, "convection")] == pytest.approx(1.9, abs=1e-9)
+    assert by[("crystal", 20, "convection")] == pytest.approx(2.7, abs=1e-9)
+    # detachment 0.3 (Γ - 1) reaches 0.02 at Γ = 1.0667, linear between 1.0 and 1.2
+    assert by[("crystal", 40, "detachment")] == pytest.approx(1.0 + 0.02 / 0.3, abs=1e-9)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_segmented_and_arrhenius_fits_cover_the_truth(seed):
+    table = _table(seed)
+    tfits = fitting.temperature_fits(table, FITS)
+    sfits = fitting.slip_fits(table, tfits, FITS)
+    for (init, n_l), tf in tfits.items():
+        assert tf["regions"] == (["A", "B"] if init == "random" else ["A1", "A2", "B"])
+        for true, est, (lo, hi) in zip(
+            K_BREAK[init], tf["breakpoints_K_m"], tf["breakpoints_K_m_ci"], strict=True
+        ):
+            assert lo <= true <= hi, (init, n_l, true, est, lo, hi)
+        for true, (lo, hi) in zip(SLOPES[init], tf["slope_ci"], strict=True):
+            assert lo <= true <= hi
+        fits = sfits[(init, n_l)]
+        for region, true in E_B[init].items():
+            af = fits[region]
+            assert af.E_b_ci[0] <= true <= af.E_b_ci[1], (init, region, af.E_b, af.E_b_ci)
+        if init == "crystal":
+            # A1 has no slip: no barrier, only upper bounds, and the paper's "exactly zero"
+            assert math.isnan(fits["A1"].E_b) and len(fits["A1"].zero_upper) > 0
+
+
+def test_summary_rows_carry_paper_values_and_fit_cleanly():
+    table = _table(4)
+    ths = fitting.thresholds_table(table, DETECTION)
+    tfits = fitting.temperature_fits(table, FITS)
+    sfits = fitting.slip_fits(table, tfits, FITS)
+    df = summary_frame(fitting.summary_rows(table, ths, tfits, sfits)).set_index("quantity")
+    assert df.loc["K_m_break_1[N_l=20,init=random]", "paper_value"] == 3.3
+    assert df.loc["E_b_A2[N_l=40,init=crystal]", "paper_value"] == 130.0
+    assert df.loc["E_b_B[N_l=40,init=crystal]", "paper_value"] == 7.0
+    assert df.loc["E_b_all[N_l=20,init=random]", "paper_value"] == 7.0
+    row = df.loc["Gamma_convection[N_l=20,init=crystal]"]
+    assert row["ci_low"] == pytest.approx(2.6) and row["ci_high"] == pytest.approx(2.8)
+    assert (df["study"] == "box").all()
+    ds = fitting.fits_datasets(table, ths, tfits, sfits)
+    assert set(ds) == {"phase_diagram", "temperature", "slips"}
