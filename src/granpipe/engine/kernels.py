@@ -148,12 +148,21 @@ def _pair_constants(sca, pair_start, pair_ij, pair_c, npairs):
 
 
 @njit
-def _rebuild(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, cell_count, cell_start, clock,
-             counters):  # fmt: skip
+def _rebuild(
+    vec, sca, ivec, skin, pair_start, pair_ij, pair_c, cell_count, cell_start, clock, counters
+):
     npairs = build_pairs(
-        vec[POS], sca[RADIUS], ivec[IS_WALL], skin, cell_count, cell_start,
-        ivec[CELL_ITEMS], ivec[CELL_OF], pair_start, pair_ij[1],
-    )  # fmt: skip
+        vec[POS],
+        sca[RADIUS],
+        ivec[IS_WALL],
+        skin,
+        cell_count,
+        cell_start,
+        ivec[CELL_ITEMS],
+        ivec[CELL_OF],
+        pair_start,
+        pair_ij[1],
+    )
     if npairs < 0:
         return False
     _pair_constants(sca, pair_start, pair_ij, pair_c, npairs)
@@ -169,8 +178,23 @@ def _rebuild(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, cell_count, cell
 
 
 @njit
-def _rebuild_with_history(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, pair_xi, old_start,
-                          old_j, old_xi, cell_count, cell_start, clock, counters):  # fmt: skip
+def _rebuild_with_history(
+    vec,
+    sca,
+    ivec,
+    skin,
+    pair_start,
+    pair_ij,
+    pair_c,
+    pair_xi,
+    old_start,
+    old_j,
+    old_xi,
+    cell_count,
+    cell_start,
+    clock,
+    counters,
+):
     n = vec.shape[1]
     npairs = counters[N_PAIRS]
     pj = pair_ij[1]
@@ -179,8 +203,9 @@ def _rebuild_with_history(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, pai
     for k in range(npairs):
         old_j[k] = pj[k]
         old_xi[k] = pair_xi[k]
-    if not _rebuild(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, cell_count, cell_start,
-                    clock, counters):  # fmt: skip
+    if not _rebuild(
+        vec, sca, ivec, skin, pair_start, pair_ij, pair_c, cell_count, cell_start, clock, counters
+    ):
         return False
     if npairs == 0:
         for k in range(counters[N_PAIRS]):
@@ -350,8 +375,11 @@ def _tangent_kick(vec, sca, ivec, dt, info, step, counters):
 
 
 @njit
-def _gather(vec, pair_ij, buf, npairs, tangent):
-    """Relative positions and velocities of every listed pair into contiguous rows."""
+def _gather(vec, sca, pair_ij, buf, npairs, mode):
+    """Relative positions and velocities of every listed pair into contiguous rows.
+
+    ``mode`` 1 adds the tangent-vector differences (drum tangent), 2 the two spins (box).
+    """
     p = _flat(vec[POS])
     v = _flat(vec[VEL])
     pi = pair_ij[0]
@@ -362,14 +390,15 @@ def _gather(vec, pair_ij, buf, npairs, tangent):
     dvy = buf[B_DVY]
     two = np.uint32(2)
     one = np.uint32(1)
-    for k in range(npairs):
-        i2 = two * pi[k]
-        j2 = two * pj[k]
-        dx[k] = p[i2] - p[j2]
-        dy[k] = p[i2 + one] - p[j2 + one]
-        dvx[k] = v[i2] - v[j2]
-        dvy[k] = v[i2 + one] - v[j2 + one]
-    if tangent:
+    if mode == 0:
+        for k in range(npairs):
+            i2 = two * pi[k]
+            j2 = two * pj[k]
+            dx[k] = p[i2] - p[j2]
+            dy[k] = p[i2 + one] - p[j2 + one]
+            dvx[k] = v[i2] - v[j2]
+            dvy[k] = v[i2 + one] - v[j2 + one]
+    elif mode == 1:
         tr = _flat(vec[T_POS])
         tv = _flat(vec[T_VEL])
         ex = buf[B_E0]
@@ -379,10 +408,29 @@ def _gather(vec, pair_ij, buf, npairs, tangent):
         for k in range(npairs):
             i2 = two * pi[k]
             j2 = two * pj[k]
+            dx[k] = p[i2] - p[j2]
+            dy[k] = p[i2 + one] - p[j2 + one]
+            dvx[k] = v[i2] - v[j2]
+            dvy[k] = v[i2 + one] - v[j2 + one]
             ex[k] = tr[i2] - tr[j2]
             ey[k] = tr[i2 + one] - tr[j2 + one]
             evx[k] = tv[i2] - tv[j2]
             evy[k] = tv[i2 + one] - tv[j2 + one]
+    else:
+        spin = sca[SPIN]
+        wi = buf[B_E0]
+        wj = buf[B_E1]
+        for k in range(npairs):
+            i = pi[k]
+            j = pj[k]
+            i2 = two * i
+            j2 = two * j
+            dx[k] = p[i2] - p[j2]
+            dy[k] = p[i2 + one] - p[j2 + one]
+            dvx[k] = v[i2] - v[j2]
+            dvy[k] = v[i2 + one] - v[j2 + one]
+            wi[k] = spin[i]
+            wj[k] = spin[j]
 
 
 @njit
@@ -459,9 +507,23 @@ def _drum_pairs_tangent(buf, pair_c, touch, law, npairs):
         vy = dvy[k]
         fx, fy, f_n, f_t, regime = drum_force(nx, ny, delta, vx, vy, k_n, g_n, g_t, mu)
         gx, gy = drum_force_jvp(
-            nx, ny, inv_r, vx, vy, f_n, f_t, regime, ex[k], ey[k], evx[k], evy[k],
-            k_n, g_n, g_t, mu,
-        )  # fmt: skip
+            nx,
+            ny,
+            inv_r,
+            vx,
+            vy,
+            f_n,
+            f_t,
+            regime,
+            ex[k],
+            ey[k],
+            evx[k],
+            evy[k],
+            k_n,
+            g_n,
+            g_t,
+            mu,
+        )
         t = r2 <= s * s
         fxa[k] = fx if t else 0.0
         fya[k] = fy if t else 0.0
@@ -471,18 +533,6 @@ def _drum_pairs_tangent(buf, pair_c, touch, law, npairs):
         ncon += 1 if t else 0
         bad |= -delta > slim[k]
     return ncon, bad
-
-
-@njit
-def _box_gather_spins(sca, pair_ij, buf, npairs):
-    spin = sca[SPIN]
-    pi = pair_ij[0]
-    pj = pair_ij[1]
-    wi = buf[B_E0]
-    wj = buf[B_E1]
-    for k in range(npairs):
-        wi[k] = spin[pi[k]]
-        wj[k] = spin[pj[k]]
 
 
 @njit
@@ -519,9 +569,24 @@ def _box_pairs(buf, pair_c, pair_xi, touch, law, dt_hist, npairs):
         overlap = s - r
         diff = sdiff[k]
         fx, fy, tau_i, tau_j, xi_new, f_n, f_t, slip = box_force(
-            dx * inv_r, dy * inv_r, overlap, 0.5 * (r + diff), 0.5 * (r - diff), dvx[k], dvy[k],
-            wia[k], wja[k], smeff[k], pair_xi[k], dt_hist, kap_n, kap_t, g_n, g_t, mu,
-        )  # fmt: skip
+            dx * inv_r,
+            dy * inv_r,
+            overlap,
+            0.5 * (r + diff),
+            0.5 * (r - diff),
+            dvx[k],
+            dvy[k],
+            wia[k],
+            wja[k],
+            smeff[k],
+            pair_xi[k],
+            dt_hist,
+            kap_n,
+            kap_t,
+            g_n,
+            g_t,
+            mu,
+        )
         t = r2 <= s * s
         fxa[k] = fx if t else 0.0
         fya[k] = fy if t else 0.0
@@ -535,59 +600,110 @@ def _box_pairs(buf, pair_c, pair_xi, touch, law, dt_hist, npairs):
 
 
 @njit
-def _scatter(vec, sca, ivec, pair_ij, buf, touch, npairs, tangent, torques, count):
-    """Add the pair forces (and perturbations, torques, contact counts) to the disks."""
+def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, count):
+    """Add the pair forces (and perturbations, torques, contact counts) to the disks.
+
+    Row by row of the half list: the owner's sums stay in registers (rows share ``i``, so
+    adding to memory pair by pair would chain store-to-load forwarding).
+    """
     f = _flat(vec[FRC])
     mg = _flat(vec[MG])
     for k in range(f.shape[0]):
         f[k] = mg[k]
-    pi = pair_ij[0]
+    n = pair_start.shape[0] - 1
     pj = pair_ij[1]
     fx = buf[B_FX]
     fy = buf[B_FY]
+    g0 = buf[B_G0]
+    g1 = buf[B_G1]
     two = np.uint32(2)
     one = np.uint32(1)
-    for k in range(npairs):
-        i2 = two * pi[k]
-        j2 = two * pj[k]
-        a = fx[k]
-        b = fy[k]
-        f[i2] += a
-        f[i2 + one] += b
-        f[j2] -= a
-        f[j2 + one] -= b
+    contacts = ivec[CONTACTS]
+    if tangent or count:
+        for i in range(n):
+            contacts[i] = 0
     if tangent:
+        # forces, their perturbation and contact counts, every step of a tangent run
         tf = _flat(vec[T_FRC])
-        gx = buf[B_G0]
-        gy = buf[B_G1]
         for k in range(tf.shape[0]):
             tf[k] = 0.0
-        for k in range(npairs):
-            i2 = two * pi[k]
-            j2 = two * pj[k]
-            a = gx[k]
-            b = gy[k]
-            tf[i2] += a
-            tf[i2 + one] += b
-            tf[j2] -= a
-            tf[j2 + one] -= b
+        for i in range(n):
+            k0 = pair_start[i]
+            k1 = pair_start[i + 1]
+            if k0 == k1:
+                continue
+            ax = 0.0
+            ay = 0.0
+            bx = 0.0
+            by = 0.0
+            ci = 0
+            for k in range(k0, k1):
+                j = pj[k]
+                j2 = two * j
+                a = fx[k]
+                b = fy[k]
+                ax += a
+                ay += b
+                f[j2] -= a
+                f[j2 + one] -= b
+                a = g0[k]
+                b = g1[k]
+                bx += a
+                by += b
+                tf[j2] -= a
+                tf[j2 + one] -= b
+                c = touch[k]
+                ci += c
+                contacts[j] += c
+            f[2 * i] += ax
+            f[2 * i + 1] += ay
+            tf[2 * i] += bx
+            tf[2 * i + 1] += by
+            contacts[i] += ci
+        return
     if torques:
         trq = sca[TORQUE]
-        ti = buf[B_G0]
-        tj = buf[B_G1]
-        for i in range(trq.shape[0]):
+        for i in range(n):
             trq[i] = 0.0
-        for k in range(npairs):
-            trq[pi[k]] += ti[k]
-            trq[pj[k]] += tj[k]
-    if count:
-        contacts = ivec[CONTACTS]
-        for i in range(contacts.shape[0]):
-            contacts[i] = 0
-        for k in range(npairs):
-            c = touch[k]
-            contacts[pi[k]] += c
-            contacts[pj[k]] += c
+    for i in range(n):
+        k0 = pair_start[i]
+        k1 = pair_start[i + 1]
+        if k0 == k1:
+            continue
+        ax = 0.0
+        ay = 0.0
+        ti = 0.0
+        ci = 0
+        if torques:
+            for k in range(k0, k1):
+                j = pj[k]
+                j2 = two * j
+                a = fx[k]
+                b = fy[k]
+                ax += a
+                ay += b
+                f[j2] -= a
+                f[j2 + one] -= b
+                ti += g0[k]
+                trq[j] += g1[k]
+            trq[i] += ti
+        else:
+            for k in range(k0, k1):
+                j2 = two * pj[k]
+                a = fx[k]
+                b = fy[k]
+                ax += a
+                ay += b
+                f[j2] -= a
+                f[j2 + one] -= b
+        f[2 * i] += ax
+        f[2 * i + 1] += ay
+        if count:
+            for k in range(k0, k1):
+                c = touch[k]
+                ci += c
+                contacts[pj[k]] += c
+            contacts[i] += ci
 
 
 @njit
@@ -606,13 +722,13 @@ def _first_deep_pair(pair_ij, buf, pair_c, npairs):
 
 
 @njit
-def _wall_geometry(w, x, y, vx, vy, fw, zb, vb):
-    """Distance, inward normal and relative velocity of a disk against flat wall ``w``."""
+def _wall_gap(w, pos, i, fw, zb):
+    """Distance from disk ``i``'s centre to flat wall ``w`` (0 left, 1 right, 2 bottom)."""
     if w == 0:
-        return x - fw[1], 1.0, 0.0, vx, vy
+        return pos[i, 0] - fw[1]
     if w == 1:
-        return fw[3] - x, -1.0, 0.0, vx, vy
-    return y - zb, 0.0, 1.0, vx, vy - vb
+        return fw[3] - pos[i, 0]
+    return pos[i, 1] - zb
 
 
 @njit
@@ -632,22 +748,22 @@ def _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step
     g_t = law[2]
     mu = law[3]
     ncon = 0
-    for i in range(pos.shape[0]):
-        if mob[i, 0] == 0.0:
+    for w in range(3):
+        if fw[2 * w] == 0.0:
             continue
-        ai = radius[i]
-        for w in range(3):
-            if fw[2 * w] == 0.0:
-                continue
-            h, nx, ny, vx, vy = _wall_geometry(
-                w, pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], fw, zb, vb
-            )
-            delta = h - ai
-            if delta > 0.0:
+        nx = 1.0 if w == 0 else (-1.0 if w == 1 else 0.0)
+        ny = 1.0 if w == 2 else 0.0
+        wv = vb if w == 2 else 0.0
+        for i in range(pos.shape[0]):
+            ai = radius[i]
+            delta = _wall_gap(w, pos, i, fw, zb) - ai
+            if delta > 0.0 or mob[i, 0] == 0.0:
                 continue
             if -delta > 0.5 * ai:
                 _fail(info, DEEP_OVERLAP, i, -1 - w, step)
                 return -1
+            vx = vel[i, 0]
+            vy = vel[i, 1] - wv
             fx, fy, f_n, f_t, regime = drum_force(nx, ny, delta, vx, vy, k_n, g_n, g_t, mu)
             frc[i, 0] += fx
             frc[i, 1] += fy
@@ -656,9 +772,23 @@ def _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step
                 contacts[i] += 1
             if tangent:
                 dfx, dfy = drum_force_jvp(
-                    nx, ny, 0.0, vx, vy, f_n, f_t, regime, tr[i, 0], tr[i, 1], tv[i, 0],
-                    tv[i, 1], k_n, g_n, g_t, mu,
-                )  # fmt: skip
+                    nx,
+                    ny,
+                    0.0,
+                    vx,
+                    vy,
+                    f_n,
+                    f_t,
+                    regime,
+                    tr[i, 0],
+                    tr[i, 1],
+                    tv[i, 0],
+                    tv[i, 1],
+                    k_n,
+                    g_n,
+                    g_t,
+                    mu,
+                )
                 tf[i, 0] += dfx
                 tf[i, 1] += dfy
     return ncon
@@ -676,31 +806,44 @@ def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
     spin = sca[SPIN]
     trq = sca[TORQUE]
     contacts = ivec[CONTACTS]
-    xi_w = sca[XI_LEFT : XI_BOTTOM + 1]
     ncon = 0
-    for i in range(pos.shape[0]):
-        if mob[i, 0] == 0.0:
+    for w in range(3):
+        if fw[2 * w] == 0.0:
             continue
-        ai = radius[i]
-        for w in range(3):
-            if fw[2 * w] == 0.0:
-                continue
-            h, nx, ny, vx, vy = _wall_geometry(
-                w, pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], fw, zb, vb
-            )
-            overlap = ai - h
-            if overlap < 0.0:
-                xi_w[w, i] = 0.0
+        xi_w = sca[XI_LEFT + w]
+        nx = 1.0 if w == 0 else (-1.0 if w == 1 else 0.0)
+        ny = 1.0 if w == 2 else 0.0
+        wv = vb if w == 2 else 0.0
+        mu_w = law[5] if w == 2 else law[6]
+        for i in range(pos.shape[0]):
+            ai = radius[i]
+            overlap = ai - _wall_gap(w, pos, i, fw, zb)
+            if overlap < 0.0 or mob[i, 0] == 0.0:
+                xi_w[i] = 0.0
                 continue
             if overlap > 0.5 * ai:
                 _fail(info, DEEP_OVERLAP, i, -1 - w, step)
                 return -1
-            mu_w = law[5] if w == 2 else law[6]
             fx, fy, tau_i, tau_j, xi_new, f_n, f_t, slip = box_force(
-                nx, ny, overlap, ai - 0.5 * overlap, 0.0, vx, vy, spin[i], 0.0,
-                1.0 / inv_mass[i], xi_w[w, i], dt_hist, law[0], law[1], law[2], law[3], mu_w,
-            )  # fmt: skip
-            xi_w[w, i] = xi_new
+                nx,
+                ny,
+                overlap,
+                ai - 0.5 * overlap,
+                0.0,
+                vel[i, 0],
+                vel[i, 1] - wv,
+                spin[i],
+                0.0,
+                1.0 / inv_mass[i],
+                xi_w[i],
+                dt_hist,
+                law[0],
+                law[1],
+                law[2],
+                law[3],
+                mu_w,
+            )
+            xi_w[i] = xi_new
             frc[i, 0] += fx
             frc[i, 1] += fy
             trq[i] += tau_i
@@ -723,14 +866,11 @@ def _count_contacts(vec, sca, ivec, pair_ij, touch, npairs, fw, zb):
         c = touch[k]
         contacts[pair_ij[0, k]] += c
         contacts[pair_ij[1, k]] += c
-    for i in range(pos.shape[0]):
-        if mob[i, 0] == 0.0:
+    for w in range(3):
+        if fw[2 * w] == 0.0:
             continue
-        for w in range(3):
-            if fw[2 * w] == 0.0:
-                continue
-            h, nx, ny, vx, vy = _wall_geometry(w, pos[i, 0], pos[i, 1], 0.0, 0.0, fw, zb, 0.0)
-            if h <= radius[i]:
+        for i in range(pos.shape[0]):
+            if mob[i, 0] != 0.0 and _wall_gap(w, pos, i, fw, zb) <= radius[i]:
                 contacts[i] += 1
 
 
@@ -771,10 +911,27 @@ def _has_flat(fw):
 
 
 @njit
-def _drum_forces(vec, sca, ivec, law, fw, zb, vb, pair_ij, pair_c, buf, touch, npairs, tangent,
-                 count, info, step):  # fmt: skip
+def _drum_forces(
+    vec,
+    sca,
+    ivec,
+    law,
+    fw,
+    zb,
+    vb,
+    pair_start,
+    pair_ij,
+    pair_c,
+    buf,
+    touch,
+    npairs,
+    tangent,
+    count,
+    info,
+    step,
+):
     """All drum-law forces of one evaluation; returns the contact count or -1 (bad)."""
-    _gather(vec, pair_ij, buf, npairs, tangent)
+    _gather(vec, sca, pair_ij, buf, npairs, 1 if tangent else 0)
     if tangent:
         ncon, bad = _drum_pairs_tangent(buf, pair_c, touch, law, npairs)
     else:
@@ -783,7 +940,7 @@ def _drum_forces(vec, sca, ivec, law, fw, zb, vb, pair_ij, pair_c, buf, touch, n
         i, j = _first_deep_pair(pair_ij, buf, pair_c, npairs)
         _fail(info, DEEP_OVERLAP, i, j, step)
         return -1
-    _scatter(vec, sca, ivec, pair_ij, buf, touch, npairs, tangent, False, count)
+    _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, False, count)
     if _has_flat(fw):
         nw = _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step)
         if nw < 0:
@@ -793,17 +950,34 @@ def _drum_forces(vec, sca, ivec, law, fw, zb, vb, pair_ij, pair_c, buf, touch, n
 
 
 @njit
-def _box_forces(vec, sca, ivec, law, fw, zb, vb, dt_hist, pair_ij, pair_c, pair_xi, buf, touch,
-                npairs, count, info, step):  # fmt: skip
+def _box_forces(
+    vec,
+    sca,
+    ivec,
+    law,
+    fw,
+    zb,
+    vb,
+    dt_hist,
+    pair_start,
+    pair_ij,
+    pair_c,
+    pair_xi,
+    buf,
+    touch,
+    npairs,
+    count,
+    info,
+    step,
+):
     """All box-law forces and torques of one evaluation; contact count or -1 (bad)."""
-    _gather(vec, pair_ij, buf, npairs, False)
-    _box_gather_spins(sca, pair_ij, buf, npairs)
+    _gather(vec, sca, pair_ij, buf, npairs, 2)
     ncon, bad = _box_pairs(buf, pair_c, pair_xi, touch, law, dt_hist, npairs)
     if bad:
         i, j = _first_deep_pair(pair_ij, buf, pair_c, npairs)
         _fail(info, DEEP_OVERLAP, i, j, step)
         return -1
-    _scatter(vec, sca, ivec, pair_ij, buf, touch, npairs, False, True, count)
+    _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, False, True, count)
     if _has_flat(fw):
         nw = _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
         if nw < 0:
@@ -813,9 +987,34 @@ def _box_forces(vec, sca, ivec, law, fw, zb, vb, dt_hist, pair_ij, pair_c, pair_
 
 
 @njit
-def _drum_replica(n_steps, stride, tangent, dt, g, law, wd, fw, skin, vec, sca, ivec, walls,
-                  pair_start, pair_ij, pair_c, buf, touch, cell_count, cell_start, clock,
-                  counters, out_lam, out_nlam, out_speed, info):  # fmt: skip
+def _drum_replica(
+    n_steps,
+    stride,
+    tangent,
+    dt,
+    g,
+    law,
+    wd,
+    fw,
+    skin,
+    vec,
+    sca,
+    ivec,
+    walls,
+    pair_start,
+    pair_ij,
+    pair_c,
+    buf,
+    touch,
+    cell_count,
+    cell_start,
+    clock,
+    counters,
+    out_lam,
+    out_nlam,
+    out_speed,
+    info,
+):
     """Advance one replica ``n_steps`` under the drum law (optionally with its tangent vector).
 
     Records, when ``stride > 0``, block means over ``stride`` steps of ``lambda`` (per-step
@@ -836,11 +1035,39 @@ def _drum_replica(n_steps, stride, tangent, dt, g, law, wd, fw, skin, vec, sca, 
         wmoved, zb, vb = _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin)
         counters[STEP] = step
         if moved or wmoved or counters[FORCE_REBUILD] != 0:
-            if not _rebuild(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, cell_count,
-                            cell_start, clock, counters):  # fmt: skip
+            if not _rebuild(
+                vec,
+                sca,
+                ivec,
+                skin,
+                pair_start,
+                pair_ij,
+                pair_c,
+                cell_count,
+                cell_start,
+                clock,
+                counters,
+            ):
                 return _fail(info, LIST_OVERFLOW, -1, -1, step)
-        ncon = _drum_forces(vec, sca, ivec, law, fw, zb, vb, pair_ij, pair_c, buf, touch,
-                            counters[N_PAIRS], tangent, tangent, info, step)  # fmt: skip
+        ncon = _drum_forces(
+            vec,
+            sca,
+            ivec,
+            law,
+            fw,
+            zb,
+            vb,
+            pair_start,
+            pair_ij,
+            pair_c,
+            buf,
+            touch,
+            counters[N_PAIRS],
+            tangent,
+            tangent,
+            info,
+            step,
+        )
         if ncon < 0:
             return info[0]
         counters[CONTACT_SUM] += ncon
@@ -873,9 +1100,35 @@ def _drum_replica(n_steps, stride, tangent, dt, g, law, wd, fw, skin, vec, sca, 
 
 
 @njit
-def _box_replica(n_steps, stride, dt, g, law, wd, fw, skin, vec, sca, ivec, walls, pair_start,
-                 pair_ij, pair_c, pair_xi, old_start, old_j, old_xi, buf, touch, cell_count,
-                 cell_start, clock, counters, out_speed, info):  # fmt: skip
+def _box_replica(
+    n_steps,
+    stride,
+    dt,
+    g,
+    law,
+    wd,
+    fw,
+    skin,
+    vec,
+    sca,
+    ivec,
+    walls,
+    pair_start,
+    pair_ij,
+    pair_c,
+    pair_xi,
+    old_start,
+    old_j,
+    old_xi,
+    buf,
+    touch,
+    cell_count,
+    cell_start,
+    clock,
+    counters,
+    out_speed,
+    info,
+):
     """Advance one replica ``n_steps`` under the box law; block means of ``V`` if ``stride``."""
     half_skin = 0.5 * skin
     _set_gravity(vec, sca, g[0], g[1])
@@ -889,12 +1142,44 @@ def _box_replica(n_steps, stride, dt, g, law, wd, fw, skin, vec, sca, ivec, wall
         wmoved, zb, vb = _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin)
         counters[STEP] = step
         if moved or wmoved or counters[FORCE_REBUILD] != 0:
-            if not _rebuild_with_history(vec, sca, ivec, skin, pair_start, pair_ij, pair_c,
-                                         pair_xi, old_start, old_j, old_xi, cell_count,
-                                         cell_start, clock, counters):  # fmt: skip
+            if not _rebuild_with_history(
+                vec,
+                sca,
+                ivec,
+                skin,
+                pair_start,
+                pair_ij,
+                pair_c,
+                pair_xi,
+                old_start,
+                old_j,
+                old_xi,
+                cell_count,
+                cell_start,
+                clock,
+                counters,
+            ):
                 return _fail(info, LIST_OVERFLOW, -1, -1, step)
-        ncon = _box_forces(vec, sca, ivec, law, fw, zb, vb, dt, pair_ij, pair_c, pair_xi, buf,
-                           touch, counters[N_PAIRS], False, info, step)  # fmt: skip
+        ncon = _box_forces(
+            vec,
+            sca,
+            ivec,
+            law,
+            fw,
+            zb,
+            vb,
+            dt,
+            pair_start,
+            pair_ij,
+            pair_c,
+            pair_xi,
+            buf,
+            touch,
+            counters[N_PAIRS],
+            False,
+            info,
+            step,
+        )
         if ncon < 0:
             return info[0]
         counters[CONTACT_SUM] += ncon
@@ -919,9 +1204,34 @@ def _box_replica(n_steps, stride, dt, g, law, wd, fw, skin, vec, sca, ivec, wall
 
 
 @njit
-def _refresh_replica(law_id, tangent, g, law, wd, fw, skin, vec, sca, ivec, walls, pair_start,
-                     pair_ij, pair_c, pair_xi, old_start, old_j, old_xi, buf, touch, cell_count,
-                     cell_start, clock, counters, dt, info):  # fmt: skip
+def _refresh_replica(
+    law_id,
+    tangent,
+    g,
+    law,
+    wd,
+    fw,
+    skin,
+    vec,
+    sca,
+    ivec,
+    walls,
+    pair_start,
+    pair_ij,
+    pair_c,
+    pair_xi,
+    old_start,
+    old_j,
+    old_xi,
+    buf,
+    touch,
+    cell_count,
+    cell_start,
+    clock,
+    counters,
+    dt,
+    info,
+):
     """Place the walls, rebuild the list and evaluate forces at the current state.
 
     Uses full-step velocities and wall velocities at the current time; the shear history is
@@ -945,18 +1255,78 @@ def _refresh_replica(law_id, tangent, g, law, wd, fw, skin, vec, sca, ivec, wall
     if i >= 0:
         return _fail(info, NONFINITE, i, -1, step)
     if law_id == 0:
-        if not _rebuild(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, cell_count,
-                        cell_start, clock, counters):  # fmt: skip
+        if not _rebuild(
+            vec,
+            sca,
+            ivec,
+            skin,
+            pair_start,
+            pair_ij,
+            pair_c,
+            cell_count,
+            cell_start,
+            clock,
+            counters,
+        ):
             return _fail(info, LIST_OVERFLOW, -1, -1, step)
-        ncon = _drum_forces(vec, sca, ivec, law, fw, zb, vb, pair_ij, pair_c, buf, touch,
-                            counters[N_PAIRS], tangent, True, info, step)  # fmt: skip
+        ncon = _drum_forces(
+            vec,
+            sca,
+            ivec,
+            law,
+            fw,
+            zb,
+            vb,
+            pair_start,
+            pair_ij,
+            pair_c,
+            buf,
+            touch,
+            counters[N_PAIRS],
+            tangent,
+            True,
+            info,
+            step,
+        )
     else:
-        if not _rebuild_with_history(vec, sca, ivec, skin, pair_start, pair_ij, pair_c, pair_xi,
-                                     old_start, old_j, old_xi, cell_count, cell_start, clock,
-                                     counters):  # fmt: skip
+        if not _rebuild_with_history(
+            vec,
+            sca,
+            ivec,
+            skin,
+            pair_start,
+            pair_ij,
+            pair_c,
+            pair_xi,
+            old_start,
+            old_j,
+            old_xi,
+            cell_count,
+            cell_start,
+            clock,
+            counters,
+        ):
             return _fail(info, LIST_OVERFLOW, -1, -1, step)
-        ncon = _box_forces(vec, sca, ivec, law, fw, zb, vb, 0.0, pair_ij, pair_c, pair_xi, buf,
-                           touch, counters[N_PAIRS], True, info, step)  # fmt: skip
+        ncon = _box_forces(
+            vec,
+            sca,
+            ivec,
+            law,
+            fw,
+            zb,
+            vb,
+            0.0,
+            pair_start,
+            pair_ij,
+            pair_c,
+            pair_xi,
+            buf,
+            touch,
+            counters[N_PAIRS],
+            True,
+            info,
+            step,
+        )
     if ncon < 0:
         return info[0]
     if tangent:
@@ -971,8 +1341,9 @@ def _refresh_replica(law_id, tangent, g, law, wd, fw, skin, vec, sca, ivec, wall
 
 
 @njit
-def _tangent_init_replica(g, law, fw, vec, sca, ivec, pair_ij, pair_c, buf, touch, clock,
-                          counters, dt, info):  # fmt: skip
+def _tangent_init_replica(
+    g, law, fw, vec, sca, ivec, pair_start, pair_ij, pair_c, buf, touch, clock, counters, dt, info
+):
     """Force perturbation of a freshly set tangent vector on the current list.
 
     Forces, contact counts and touch flags are recomputed as a side effect (the caller
@@ -985,8 +1356,25 @@ def _tangent_init_replica(g, law, fw, vec, sca, ivec, pair_ij, pair_c, buf, touc
         zb = bottom_height(fw, t)
         vb = bottom_velocity(fw, t)
     _set_gravity(vec, sca, g[0], g[1])
-    _drum_forces(vec, sca, ivec, law, fw, zb, vb, pair_ij, pair_c, buf, touch,
-                 counters[N_PAIRS], True, True, info, counters[STEP])  # fmt: skip
+    _drum_forces(
+        vec,
+        sca,
+        ivec,
+        law,
+        fw,
+        zb,
+        vb,
+        pair_start,
+        pair_ij,
+        pair_c,
+        buf,
+        touch,
+        counters[N_PAIRS],
+        True,
+        True,
+        info,
+        counters[STEP],
+    )
     tr = vec[T_POS]
     tv = vec[T_VEL]
     prev = sca[T_PREV]
@@ -999,78 +1387,334 @@ def _tangent_init_replica(g, law, fw, vec, sca, ivec, pair_ij, pair_c, buf, touc
 
 
 @njit
-def drum_run_serial(n_steps, stride, tangent, dt, g, law, wd, fw, skin, vec, sca, ivec, walls,
-                    pair_start, pair_ij, pair_c, buf, touch, cell_count, cell_start, clock,
-                    counters, out_lam, out_nlam, out_speed, info):  # fmt: skip
+def drum_run_serial(
+    n_steps,
+    stride,
+    tangent,
+    dt,
+    g,
+    law,
+    wd,
+    fw,
+    skin,
+    vec,
+    sca,
+    ivec,
+    walls,
+    pair_start,
+    pair_ij,
+    pair_c,
+    buf,
+    touch,
+    cell_count,
+    cell_start,
+    clock,
+    counters,
+    out_lam,
+    out_nlam,
+    out_speed,
+    info,
+):
     """Drum law over replicas one after another (arrays with a leading replica axis)."""
     for r in range(vec.shape[0]):
         _drum_replica(
-            n_steps, stride, tangent, dt, g, law, wd, fw, skin, vec[r], sca[r], ivec[r],
-            walls[r], pair_start[r], pair_ij[r], pair_c[r], buf[r], touch[r], cell_count[r],
-            cell_start[r], clock[r], counters[r], out_lam[r], out_nlam[r], out_speed[r], info[r],
-        )  # fmt: skip
+            n_steps,
+            stride,
+            tangent,
+            dt,
+            g,
+            law,
+            wd,
+            fw,
+            skin,
+            vec[r],
+            sca[r],
+            ivec[r],
+            walls[r],
+            pair_start[r],
+            pair_ij[r],
+            pair_c[r],
+            buf[r],
+            touch[r],
+            cell_count[r],
+            cell_start[r],
+            clock[r],
+            counters[r],
+            out_lam[r],
+            out_nlam[r],
+            out_speed[r],
+            info[r],
+        )
 
 
 @pnjit
-def drum_run_parallel(n_steps, stride, tangent, dt, g, law, wd, fw, skin, vec, sca, ivec, walls,
-                      pair_start, pair_ij, pair_c, buf, touch, cell_count, cell_start, clock,
-                      counters, out_lam, out_nlam, out_speed, info):  # fmt: skip
+def drum_run_parallel(
+    n_steps,
+    stride,
+    tangent,
+    dt,
+    g,
+    law,
+    wd,
+    fw,
+    skin,
+    vec,
+    sca,
+    ivec,
+    walls,
+    pair_start,
+    pair_ij,
+    pair_c,
+    buf,
+    touch,
+    cell_count,
+    cell_start,
+    clock,
+    counters,
+    out_lam,
+    out_nlam,
+    out_speed,
+    info,
+):
     """Drum law over replicas under ``prange`` (each iteration writes only its replica)."""
     for r in numba_prange(vec.shape[0]):
         _drum_replica(
-            n_steps, stride, tangent, dt, g, law, wd, fw, skin, vec[r], sca[r], ivec[r],
-            walls[r], pair_start[r], pair_ij[r], pair_c[r], buf[r], touch[r], cell_count[r],
-            cell_start[r], clock[r], counters[r], out_lam[r], out_nlam[r], out_speed[r], info[r],
-        )  # fmt: skip
+            n_steps,
+            stride,
+            tangent,
+            dt,
+            g,
+            law,
+            wd,
+            fw,
+            skin,
+            vec[r],
+            sca[r],
+            ivec[r],
+            walls[r],
+            pair_start[r],
+            pair_ij[r],
+            pair_c[r],
+            buf[r],
+            touch[r],
+            cell_count[r],
+            cell_start[r],
+            clock[r],
+            counters[r],
+            out_lam[r],
+            out_nlam[r],
+            out_speed[r],
+            info[r],
+        )
 
 
 @njit
-def box_run_serial(n_steps, stride, dt, g, law, wd, fw, skin, vec, sca, ivec, walls, pair_start,
-                   pair_ij, pair_c, pair_xi, old_start, old_j, old_xi, buf, touch, cell_count,
-                   cell_start, clock, counters, out_speed, info):  # fmt: skip
+def box_run_serial(
+    n_steps,
+    stride,
+    dt,
+    g,
+    law,
+    wd,
+    fw,
+    skin,
+    vec,
+    sca,
+    ivec,
+    walls,
+    pair_start,
+    pair_ij,
+    pair_c,
+    pair_xi,
+    old_start,
+    old_j,
+    old_xi,
+    buf,
+    touch,
+    cell_count,
+    cell_start,
+    clock,
+    counters,
+    out_speed,
+    info,
+):
     """Box law over replicas one after another."""
     for r in range(vec.shape[0]):
         _box_replica(
-            n_steps, stride, dt, g, law, wd, fw, skin, vec[r], sca[r], ivec[r], walls[r],
-            pair_start[r], pair_ij[r], pair_c[r], pair_xi[r], old_start[r], old_j[r], old_xi[r],
-            buf[r], touch[r], cell_count[r], cell_start[r], clock[r], counters[r], out_speed[r],
+            n_steps,
+            stride,
+            dt,
+            g,
+            law,
+            wd,
+            fw,
+            skin,
+            vec[r],
+            sca[r],
+            ivec[r],
+            walls[r],
+            pair_start[r],
+            pair_ij[r],
+            pair_c[r],
+            pair_xi[r],
+            old_start[r],
+            old_j[r],
+            old_xi[r],
+            buf[r],
+            touch[r],
+            cell_count[r],
+            cell_start[r],
+            clock[r],
+            counters[r],
+            out_speed[r],
             info[r],
-        )  # fmt: skip
+        )
 
 
 @pnjit
-def box_run_parallel(n_steps, stride, dt, g, law, wd, fw, skin, vec, sca, ivec, walls,
-                     pair_start, pair_ij, pair_c, pair_xi, old_start, old_j, old_xi, buf, touch,
-                     cell_count, cell_start, clock, counters, out_speed, info):  # fmt: skip
+def box_run_parallel(
+    n_steps,
+    stride,
+    dt,
+    g,
+    law,
+    wd,
+    fw,
+    skin,
+    vec,
+    sca,
+    ivec,
+    walls,
+    pair_start,
+    pair_ij,
+    pair_c,
+    pair_xi,
+    old_start,
+    old_j,
+    old_xi,
+    buf,
+    touch,
+    cell_count,
+    cell_start,
+    clock,
+    counters,
+    out_speed,
+    info,
+):
     """Box law over replicas under ``prange``."""
     for r in numba_prange(vec.shape[0]):
         _box_replica(
-            n_steps, stride, dt, g, law, wd, fw, skin, vec[r], sca[r], ivec[r], walls[r],
-            pair_start[r], pair_ij[r], pair_c[r], pair_xi[r], old_start[r], old_j[r], old_xi[r],
-            buf[r], touch[r], cell_count[r], cell_start[r], clock[r], counters[r], out_speed[r],
+            n_steps,
+            stride,
+            dt,
+            g,
+            law,
+            wd,
+            fw,
+            skin,
+            vec[r],
+            sca[r],
+            ivec[r],
+            walls[r],
+            pair_start[r],
+            pair_ij[r],
+            pair_c[r],
+            pair_xi[r],
+            old_start[r],
+            old_j[r],
+            old_xi[r],
+            buf[r],
+            touch[r],
+            cell_count[r],
+            cell_start[r],
+            clock[r],
+            counters[r],
+            out_speed[r],
             info[r],
-        )  # fmt: skip
+        )
 
 
 @njit
-def refresh_serial(law_id, tangent, g, law, wd, fw, skin, vec, sca, ivec, walls, pair_start,
-                   pair_ij, pair_c, pair_xi, old_start, old_j, old_xi, buf, touch, cell_count,
-                   cell_start, clock, counters, dt, info):  # fmt: skip
+def refresh_serial(
+    law_id,
+    tangent,
+    g,
+    law,
+    wd,
+    fw,
+    skin,
+    vec,
+    sca,
+    ivec,
+    walls,
+    pair_start,
+    pair_ij,
+    pair_c,
+    pair_xi,
+    old_start,
+    old_j,
+    old_xi,
+    buf,
+    touch,
+    cell_count,
+    cell_start,
+    clock,
+    counters,
+    dt,
+    info,
+):
     """:func:`_refresh_replica` over replicas."""
     for r in range(vec.shape[0]):
         _refresh_replica(
-            law_id, tangent, g, law, wd, fw, skin, vec[r], sca[r], ivec[r], walls[r],
-            pair_start[r], pair_ij[r], pair_c[r], pair_xi[r], old_start[r], old_j[r], old_xi[r],
-            buf[r], touch[r], cell_count[r], cell_start[r], clock[r], counters[r], dt, info[r],
-        )  # fmt: skip
+            law_id,
+            tangent,
+            g,
+            law,
+            wd,
+            fw,
+            skin,
+            vec[r],
+            sca[r],
+            ivec[r],
+            walls[r],
+            pair_start[r],
+            pair_ij[r],
+            pair_c[r],
+            pair_xi[r],
+            old_start[r],
+            old_j[r],
+            old_xi[r],
+            buf[r],
+            touch[r],
+            cell_count[r],
+            cell_start[r],
+            clock[r],
+            counters[r],
+            dt,
+            info[r],
+        )
 
 
 @njit
-def tangent_init_serial(g, law, fw, vec, sca, ivec, pair_ij, pair_c, buf, touch, clock,
-                        counters, dt, info):  # fmt: skip
+def tangent_init_serial(
+    g, law, fw, vec, sca, ivec, pair_start, pair_ij, pair_c, buf, touch, clock, counters, dt, info
+):
     """:func:`_tangent_init_replica` over replicas."""
     for r in range(vec.shape[0]):
         _tangent_init_replica(
-            g, law, fw, vec[r], sca[r], ivec[r], pair_ij[r], pair_c[r], buf[r], touch[r],
-            clock[r], counters[r], dt, info[r],
-        )  # fmt: skip
+            g,
+            law,
+            fw,
+            vec[r],
+            sca[r],
+            ivec[r],
+            pair_start[r],
+            pair_ij[r],
+            pair_c[r],
+            buf[r],
+            touch[r],
+            clock[r],
+            counters[r],
+            dt,
+            info[r],
+        )

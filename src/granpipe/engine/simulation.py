@@ -608,11 +608,33 @@ class Simulation:
         g, law, wd, fw = self._params()
         s = state._s
         K.refresh_serial(
-            self.law.law_id, bool(s["has_tangent"]), g, law, wd, fw, skin, s["vec"], s["sca"],
-            s["ivec"], s["walls"], s["pair_start"], s["pair_ij"], s["pair_c"], s["pair_xi"],
-            s["old_start"], s["old_j"], s["old_xi"], s["buf"], s["touch"], s["cell_count"],
-            s["cell_start"], s["clock"], s["counters"], self.dt, s["info"],
-        )  # fmt: skip
+            self.law.law_id,
+            bool(s["has_tangent"]),
+            g,
+            law,
+            wd,
+            fw,
+            skin,
+            s["vec"],
+            s["sca"],
+            s["ivec"],
+            s["walls"],
+            s["pair_start"],
+            s["pair_ij"],
+            s["pair_c"],
+            s["pair_xi"],
+            s["old_start"],
+            s["old_j"],
+            s["old_xi"],
+            s["buf"],
+            s["touch"],
+            s["cell_count"],
+            s["cell_start"],
+            s["clock"],
+            s["counters"],
+            self.dt,
+            s["info"],
+        )
         self._raise(state)
 
     def set_tangent(self, state, dr, dv) -> None:
@@ -645,9 +667,22 @@ class Simulation:
         saved_c = s["ivec"][:, K.CONTACTS].copy()
         saved_t = s["touch"].copy()
         K.tangent_init_serial(
-            g, law, fw, s["vec"], s["sca"], s["ivec"], s["pair_ij"], s["pair_c"], s["buf"],
-            s["touch"], s["clock"], s["counters"], self.dt, s["info"],
-        )  # fmt: skip
+            g,
+            law,
+            fw,
+            s["vec"],
+            s["sca"],
+            s["ivec"],
+            s["pair_start"],
+            s["pair_ij"],
+            s["pair_c"],
+            s["buf"],
+            s["touch"],
+            s["clock"],
+            s["counters"],
+            self.dt,
+            s["info"],
+        )
         s["vec"][:, K.FRC] = saved_f
         s["ivec"][:, K.CONTACTS] = saved_c
         s["touch"][...] = saved_t
@@ -725,20 +760,65 @@ class Simulation:
             nlam = np.zeros((r_count, blocks), dtype=np.int64)
             fn = K.drum_run_parallel if par else K.drum_run_serial
             fn(
-                n_steps, stride, bool(tangent), self.dt, g, law, wd, fw, skin, s["vec"],
-                s["sca"], s["ivec"], s["walls"], s["pair_start"], s["pair_ij"], s["pair_c"],
-                s["buf"], s["touch"], s["cell_count"], s["cell_start"], s["clock"],
-                s["counters"], lam, nlam, speed, s["info"],
-            )  # fmt: skip
+                n_steps,
+                stride,
+                bool(tangent),
+                self.dt,
+                g,
+                law,
+                wd,
+                fw,
+                skin,
+                s["vec"],
+                s["sca"],
+                s["ivec"],
+                s["walls"],
+                s["pair_start"],
+                s["pair_ij"],
+                s["pair_c"],
+                s["buf"],
+                s["touch"],
+                s["cell_count"],
+                s["cell_start"],
+                s["clock"],
+                s["counters"],
+                lam,
+                nlam,
+                speed,
+                s["info"],
+            )
         else:
             lam = nlam = None
             fn = K.box_run_parallel if par else K.box_run_serial
             fn(
-                n_steps, stride, self.dt, g, law, wd, fw, skin, s["vec"], s["sca"], s["ivec"],
-                s["walls"], s["pair_start"], s["pair_ij"], s["pair_c"], s["pair_xi"],
-                s["old_start"], s["old_j"], s["old_xi"], s["buf"], s["touch"], s["cell_count"],
-                s["cell_start"], s["clock"], s["counters"], speed, s["info"],
-            )  # fmt: skip
+                n_steps,
+                stride,
+                self.dt,
+                g,
+                law,
+                wd,
+                fw,
+                skin,
+                s["vec"],
+                s["sca"],
+                s["ivec"],
+                s["walls"],
+                s["pair_start"],
+                s["pair_ij"],
+                s["pair_c"],
+                s["pair_xi"],
+                s["old_start"],
+                s["old_j"],
+                s["old_xi"],
+                s["buf"],
+                s["touch"],
+                s["cell_count"],
+                s["cell_start"],
+                s["clock"],
+                s["counters"],
+                speed,
+                s["info"],
+            )
         self._raise(state)
         # block b holds steps b*stride+1 .. (b+1)*stride after the start
         centre = (np.arange(blocks) * stride + 0.5 * (stride + 1)) * self.dt
