@@ -62,14 +62,19 @@ P_SUM, P_LIM, P_MEFF, P_DIFF = range(4)
 NPC = 4
 # rows of the pair buffer (NB, P)
 B_DX, B_DY, B_DVX, B_DVY, B_E0, B_E1, B_E2, B_E3, B_FX, B_FY, B_G0, B_G1 = range(12)
-NB = 12
+# rows of the pair constants and history, copied along when the pass is compacted
+B_S, B_L, B_M, B_D, B_XI = range(12, 17)
+NB = 17
+# rows of pair_ij (3, P): owner i, partner j, and (compacted passes) the pair index k
+PI, PJ, PK = range(3)
 # clock (5,): time origin, wall angle, its angular velocity over the last step, the angle
 # at the last list build, the largest distance of a wall disk from the centre
 T_ORIGIN, THETA, LAST_OMEGA, THETA_BUILD, WALL_RMAX = range(5)
 NCLOCK = 5
 # counters (8,)
 STEP, N_PAIRS, N_REBUILDS, FORCE_REBUILD, LOG2_SCALE, CONTACT_SUM, STEPS_RUN, N_WALLS = range(8)
-NCOUNT = 8
+LAST_PAIR_CONTACTS = 8  # contacts among listed pairs at the last evaluation (pass choice)
+NCOUNT = 9
 # info (4,): status, particle, other, step
 OK, NONFINITE, DEEP_OVERLAP, LIST_OVERFLOW, TANGENT_NONFINITE = range(5)
 # "other" codes for flat walls in info
@@ -434,7 +439,7 @@ def _gather(vec, sca, pair_ij, buf, npairs, mode):
 
 
 @njit
-def _drum_pairs(buf, pair_c, touch, law, npairs):
+def _drum_pairs(buf, ssum, slim, touch, law, npairs):
     """Drum-law force of every listed pair (zero if apart). Returns (contacts, bad)."""
     k_n = law[0]
     g_n = law[1]
@@ -446,8 +451,6 @@ def _drum_pairs(buf, pair_c, touch, law, npairs):
     dvy = buf[B_DVY]
     fxa = buf[B_FX]
     fya = buf[B_FY]
-    ssum = pair_c[P_SUM]
-    slim = pair_c[P_LIM]
     ncon = 0
     bad = False
     for k in range(npairs):
@@ -471,7 +474,7 @@ def _drum_pairs(buf, pair_c, touch, law, npairs):
 
 
 @njit
-def _drum_pairs_tangent(buf, pair_c, touch, law, npairs):
+def _drum_pairs_tangent(buf, ssum, slim, touch, law, npairs):
     """Drum-law forces and their perturbation ``J . (dd, dv)`` for every listed pair."""
     k_n = law[0]
     g_n = law[1]
@@ -489,8 +492,6 @@ def _drum_pairs_tangent(buf, pair_c, touch, law, npairs):
     fya = buf[B_FY]
     gxa = buf[B_G0]
     gya = buf[B_G1]
-    ssum = pair_c[P_SUM]
-    slim = pair_c[P_LIM]
     ncon = 0
     bad = False
     for k in range(npairs):
@@ -536,7 +537,7 @@ def _drum_pairs_tangent(buf, pair_c, touch, law, npairs):
 
 
 @njit
-def _box_pairs(buf, pair_c, pair_xi, touch, law, dt_hist, npairs):
+def _box_pairs(buf, ssum, slim, smeff, sdiff, pair_xi, touch, law, dt_hist, npairs):
     """Box-law force and torques of every listed pair; advances (or resets) histories."""
     kap_n = law[0]
     kap_t = law[1]
@@ -553,10 +554,6 @@ def _box_pairs(buf, pair_c, pair_xi, touch, law, dt_hist, npairs):
     fya = buf[B_FY]
     tia = buf[B_G0]
     tja = buf[B_G1]
-    ssum = pair_c[P_SUM]
-    slim = pair_c[P_LIM]
-    smeff = pair_c[P_MEFF]
-    sdiff = pair_c[P_DIFF]
     ncon = 0
     bad = False
     for k in range(npairs):
@@ -707,15 +704,125 @@ def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, 
 
 
 @njit
-def _first_deep_pair(pair_ij, buf, pair_c, npairs):
-    """First listed pair whose overlap exceeds its bound (called after a flag was raised)."""
-    for k in range(npairs):
-        dx = buf[B_DX, k]
-        dy = buf[B_DY, k]
+def _first_deep_pair(pair_ij, buf, ssum, slim, npairs, compact):
+    """First evaluated pair whose overlap exceeds its bound (called after a flag was raised)."""
+    for q in range(npairs):
+        dx = buf[B_DX, q]
+        dy = buf[B_DY, q]
         r = math.sqrt(dx * dx + dy * dy)
-        if pair_c[P_SUM, k] - r > pair_c[P_LIM, k]:
-            return pair_ij[0, k], pair_ij[1, k]
+        if ssum[q] - r > slim[q]:
+            k = pair_ij[PK, q] if compact else q
+            return pair_ij[PI, k], pair_ij[PJ, k]
     return -1, -1
+
+
+@njit
+def _gather_compact(vec, sca, pair_ij, pair_c, pair_xi, buf, npairs, mode):
+    """Like :func:`_gather`, keeping only touching pairs (with their constants and history).
+
+    Non-touching pairs of the box law lose their history here. Returns their count m; the
+    buffers hold m entries and ``pair_ij[PK, :m]`` their pair indices.
+    """
+    p = _flat(vec[POS])
+    v = _flat(vec[VEL])
+    spin = sca[SPIN]
+    pi = pair_ij[PI]
+    pj = pair_ij[PJ]
+    pk = pair_ij[PK]
+    ssum = pair_c[P_SUM]
+    two = np.uint32(2)
+    one = np.uint32(1)
+    m = 0
+    for k in range(npairs):
+        i = pi[k]
+        j = pj[k]
+        i2 = two * i
+        j2 = two * j
+        x = p[i2] - p[j2]
+        y = p[i2 + one] - p[j2 + one]
+        s = ssum[k]
+        if x * x + y * y > s * s:
+            if mode == 2:
+                pair_xi[k] = 0.0
+            continue
+        buf[B_DX, m] = x
+        buf[B_DY, m] = y
+        buf[B_DVX, m] = v[i2] - v[j2]
+        buf[B_DVY, m] = v[i2 + one] - v[j2 + one]
+        buf[B_S, m] = s
+        buf[B_L, m] = pair_c[P_LIM, k]
+        if mode == 1:
+            tr = _flat(vec[T_POS])
+            tv = _flat(vec[T_VEL])
+            buf[B_E0, m] = tr[i2] - tr[j2]
+            buf[B_E1, m] = tr[i2 + one] - tr[j2 + one]
+            buf[B_E2, m] = tv[i2] - tv[j2]
+            buf[B_E3, m] = tv[i2 + one] - tv[j2 + one]
+        elif mode == 2:
+            buf[B_E0, m] = spin[i]
+            buf[B_E1, m] = spin[j]
+            buf[B_M, m] = pair_c[P_MEFF, k]
+            buf[B_D, m] = pair_c[P_DIFF, k]
+            buf[B_XI, m] = pair_xi[k]
+        pk[m] = k
+        m += 1
+    return m
+
+
+@njit
+def _scatter_compact(vec, sca, ivec, pair_ij, buf, pair_xi, m, tangent, torques, count):
+    """:func:`_scatter` over the m compacted (touching) pairs; writes box histories back."""
+    f = _flat(vec[FRC])
+    mg = _flat(vec[MG])
+    for k in range(f.shape[0]):
+        f[k] = mg[k]
+    pi = pair_ij[PI]
+    pj = pair_ij[PJ]
+    pk = pair_ij[PK]
+    fx = buf[B_FX]
+    fy = buf[B_FY]
+    g0 = buf[B_G0]
+    g1 = buf[B_G1]
+    two = np.uint32(2)
+    one = np.uint32(1)
+    contacts = ivec[CONTACTS]
+    trq = sca[TORQUE]
+    tf = _flat(vec[T_FRC])
+    if tangent or count:
+        for i in range(contacts.shape[0]):
+            contacts[i] = 0
+    if tangent:
+        for k in range(tf.shape[0]):
+            tf[k] = 0.0
+    if torques:
+        for i in range(trq.shape[0]):
+            trq[i] = 0.0
+    for q in range(m):
+        k = pk[q]
+        i = pi[k]
+        j = pj[k]
+        i2 = two * i
+        j2 = two * j
+        a = fx[q]
+        b = fy[q]
+        f[i2] += a
+        f[i2 + one] += b
+        f[j2] -= a
+        f[j2 + one] -= b
+        if tangent:
+            a = g0[q]
+            b = g1[q]
+            tf[i2] += a
+            tf[i2 + one] += b
+            tf[j2] -= a
+            tf[j2 + one] -= b
+        if torques:
+            trq[i] += g0[q]
+            trq[j] += g1[q]
+            pair_xi[k] = buf[B_XI, q]
+        if tangent or count:
+            contacts[i] += 1
+            contacts[j] += 1
 
 
 # --------------------------------------------------------------------------- flat walls
@@ -854,18 +961,30 @@ def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
 
 
 @njit
-def _count_contacts(vec, sca, ivec, pair_ij, touch, npairs, fw, zb):
-    """Contact counts from the last evaluation's touch flags and the flat walls."""
+def _count_contacts(vec, sca, ivec, pair_ij, pair_c, npairs, fw, zb):
+    """Contact counts at the current positions (those of the last force evaluation), by the
+    same test as the force passes (``r² <= (a_i + a_j)²``), flat walls included."""
     contacts = ivec[CONTACTS]
+    p = _flat(vec[POS])
     pos = vec[POS]
     mob = vec[MOB2]
     radius = sca[RADIUS]
+    pi = pair_ij[PI]
+    pj = pair_ij[PJ]
+    ssum = pair_c[P_SUM]
+    two = np.uint32(2)
+    one = np.uint32(1)
     for i in range(contacts.shape[0]):
         contacts[i] = 0
     for k in range(npairs):
-        c = touch[k]
-        contacts[pair_ij[0, k]] += c
-        contacts[pair_ij[1, k]] += c
+        i = pi[k]
+        j = pj[k]
+        x = p[two * i] - p[two * j]
+        y = p[two * i + one] - p[two * j + one]
+        s = ssum[k]
+        c = 1 if x * x + y * y <= s * s else 0
+        contacts[i] += c
+        contacts[j] += c
     for w in range(3):
         if fw[2 * w] == 0.0:
             continue
@@ -924,23 +1043,41 @@ def _drum_forces(
     pair_c,
     buf,
     touch,
-    npairs,
+    counters,
     tangent,
     count,
     info,
     step,
 ):
-    """All drum-law forces of one evaluation; returns the contact count or -1 (bad)."""
-    _gather(vec, sca, pair_ij, buf, npairs, 1 if tangent else 0)
-    if tangent:
-        ncon, bad = _drum_pairs_tangent(buf, pair_c, touch, law, npairs)
+    """All drum-law forces of one evaluation; returns the contact count or -1 (bad).
+
+    The law runs on all listed pairs, or only on the touching ones (compacted first) when
+    fewer than half of them touched at the previous evaluation; the results are the same.
+    """
+    npairs = counters[N_PAIRS]
+    compact = 2 * counters[LAST_PAIR_CONTACTS] < npairs
+    if compact:
+        m = _gather_compact(vec, sca, pair_ij, pair_c, buf[B_XI], buf, npairs, 1 if tangent else 0)
+        ssum = buf[B_S]
+        slim = buf[B_L]
     else:
-        ncon, bad = _drum_pairs(buf, pair_c, touch, law, npairs)
+        m = npairs
+        _gather(vec, sca, pair_ij, buf, npairs, 1 if tangent else 0)
+        ssum = pair_c[P_SUM]
+        slim = pair_c[P_LIM]
+    if tangent:
+        ncon, bad = _drum_pairs_tangent(buf, ssum, slim, touch, law, m)
+    else:
+        ncon, bad = _drum_pairs(buf, ssum, slim, touch, law, m)
     if bad:
-        i, j = _first_deep_pair(pair_ij, buf, pair_c, npairs)
+        i, j = _first_deep_pair(pair_ij, buf, ssum, slim, m, compact)
         _fail(info, DEEP_OVERLAP, i, j, step)
         return -1
-    _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, False, count)
+    if compact:
+        _scatter_compact(vec, sca, ivec, pair_ij, buf, buf[B_XI], m, tangent, False, count)
+    else:
+        _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, False, count)
+    counters[LAST_PAIR_CONTACTS] = ncon
     if _has_flat(fw):
         nw = _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step)
         if nw < 0:
@@ -965,19 +1102,41 @@ def _box_forces(
     pair_xi,
     buf,
     touch,
-    npairs,
+    counters,
     count,
     info,
     step,
 ):
-    """All box-law forces and torques of one evaluation; contact count or -1 (bad)."""
-    _gather(vec, sca, pair_ij, buf, npairs, 2)
-    ncon, bad = _box_pairs(buf, pair_c, pair_xi, touch, law, dt_hist, npairs)
+    """All box-law forces and torques of one evaluation; contact count or -1 (bad).
+
+    Compacted like :func:`_drum_forces` when few listed pairs touch.
+    """
+    npairs = counters[N_PAIRS]
+    compact = 2 * counters[LAST_PAIR_CONTACTS] < npairs
+    if compact:
+        m = _gather_compact(vec, sca, pair_ij, pair_c, pair_xi, buf, npairs, 2)
+        ssum = buf[B_S]
+        slim = buf[B_L]
+        ncon, bad = _box_pairs(
+            buf, ssum, slim, buf[B_M], buf[B_D], buf[B_XI], touch, law, dt_hist, m
+        )
+    else:
+        m = npairs
+        _gather(vec, sca, pair_ij, buf, npairs, 2)
+        ssum = pair_c[P_SUM]
+        slim = pair_c[P_LIM]
+        ncon, bad = _box_pairs(
+            buf, ssum, slim, pair_c[P_MEFF], pair_c[P_DIFF], pair_xi, touch, law, dt_hist, m
+        )
     if bad:
-        i, j = _first_deep_pair(pair_ij, buf, pair_c, npairs)
+        i, j = _first_deep_pair(pair_ij, buf, ssum, slim, m, compact)
         _fail(info, DEEP_OVERLAP, i, j, step)
         return -1
-    _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, False, True, count)
+    if compact:
+        _scatter_compact(vec, sca, ivec, pair_ij, buf, pair_xi, m, False, True, count)
+    else:
+        _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, False, True, count)
+    counters[LAST_PAIR_CONTACTS] = ncon
     if _has_flat(fw):
         nw = _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
         if nw < 0:
@@ -1062,7 +1221,7 @@ def _drum_replica(
             pair_c,
             buf,
             touch,
-            counters[N_PAIRS],
+            counters,
             tangent,
             tangent,
             info,
@@ -1095,7 +1254,7 @@ def _drum_replica(
                 lam_sum = 0.0
                 lam_n = 0
     if n_steps > 0 and not tangent:
-        _count_contacts(vec, sca, ivec, pair_ij, touch, counters[N_PAIRS], fw, zb)
+        _count_contacts(vec, sca, ivec, pair_ij, pair_c, counters[N_PAIRS], fw, zb)
     return OK
 
 
@@ -1175,7 +1334,7 @@ def _box_replica(
             pair_xi,
             buf,
             touch,
-            counters[N_PAIRS],
+            counters,
             False,
             info,
             step,
@@ -1196,7 +1355,7 @@ def _box_replica(
                 in_block = 0
                 v_sum = 0.0
     if n_steps > 0:
-        _count_contacts(vec, sca, ivec, pair_ij, touch, counters[N_PAIRS], fw, zb)
+        _count_contacts(vec, sca, ivec, pair_ij, pair_c, counters[N_PAIRS], fw, zb)
     return OK
 
 
@@ -1282,7 +1441,7 @@ def _refresh_replica(
             pair_c,
             buf,
             touch,
-            counters[N_PAIRS],
+            counters,
             tangent,
             True,
             info,
@@ -1322,7 +1481,7 @@ def _refresh_replica(
             pair_xi,
             buf,
             touch,
-            counters[N_PAIRS],
+            counters,
             True,
             info,
             step,
@@ -1369,7 +1528,7 @@ def _tangent_init_replica(
         pair_c,
         buf,
         touch,
-        counters[N_PAIRS],
+        counters,
         True,
         True,
         info,

@@ -201,8 +201,9 @@ def box_force(
     slip = abs(f_t) > limit
     # selects only (the pair pass vectorises); kappa_t = 0 keeps no elastic shear
     capped = limit if f_t > 0.0 else -limit
-    reset = -(capped + damp) / kappa_t if kappa_t > 0.0 else 0.0
-    xi_new = reset if slip else xi_new
+    # (1/kappa_t is loop-invariant in the pair pass and hoisted out of it)
+    inv_kt = 1.0 / kappa_t if kappa_t > 0.0 else 0.0
+    xi_new = -(capped + damp) * inv_kt if slip else xi_new
     f_t = capped if slip else f_t
     fx = f_n * nx - f_t * ny
     fy = f_n * ny + f_t * nx

@@ -520,7 +520,7 @@ class Simulation:
             "ivec": ivec,
             "walls": walls,
             "pair_start": np.zeros((r_count, n + 1), dtype=np.int64),
-            "pair_ij": np.zeros((r_count, 2, cap), dtype=np.uint32),
+            "pair_ij": np.zeros((r_count, 3, cap), dtype=np.uint32),
             "pair_c": np.zeros((r_count, K.NPC, cap)),
             "pair_xi": np.zeros((r_count, cap)),
             "old_start": np.zeros((r_count, n + 1), dtype=np.int64),
