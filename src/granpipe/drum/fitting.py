@@ -352,13 +352,16 @@ def _window_analysis(
 ):  # fmt: skip
     """Change of state, sign change and lag of one window, with a joint bootstrap.
 
-    Central values: fits of the ensemble mean weighted by its standard error. The
-    bootstrap refits every resample with the same weights (fixed design); a
+    Central values: fits of the ensemble mean (weighted by its standard error if
+    ``fits.weighted``; the bootstrap then keeps those weights, a fixed design); a
     ``zero_window`` of ``"auto"`` is re-centred in every resample on the first
     crossing of its own λ̄ within ``search``.
     """
     mV, sV = ens[f"speed_{w}_mean"].values, ens[f"speed_{w}_sem"].values
     mL, sL = ens[f"lambda_{w}_mean"].values, ens[f"lambda_{w}_sem"].values
+    if not cfg.get("weighted", False):
+        # ordinary least squares, errors from the residuals (see fits.weighted)
+        sV = sL = None
     n = int(ens.attrs["n_replicas"])
     out: dict[str, FitResult] = {}
     if vertex_window is not None:
@@ -435,8 +438,9 @@ def drum_fits(
 
     Notes
     -----
-    Central values and fit errors come from the ensemble mean weighted by its
-    standard error (so they do not depend on the bootstrap unit); intervals from
+    Central values and fit errors come from the ensemble mean (ordinary least
+    squares with residual-based errors, or weighted by 1/SEM² with
+    ``fits.weighted``), so they do not depend on the bootstrap unit; intervals from
     the joint percentile bootstrap of V and λ (the lag's interval from the
     per-resample difference, keeping the correlation of the two fits).
     """

@@ -61,7 +61,7 @@ def _ci_text(fits: xr.Dataset, name: str) -> str:
 def _window_plot(ens, fits, window: str, ax=None, mode: str = "config"):
     """λ points, λ̄, low-pass, fit segment(s) and V on a twin axis, for one window."""
     if ax is None:
-        fig, ax = plt.subplots(figsize=(7.0, 4.2), layout="constrained")
+        fig, ax = plt.subplots(figsize=(7.0, 4.8), layout="constrained")
     else:
         fig = ax.figure
     t = ens[f"seconds_{window}"].values
@@ -123,7 +123,7 @@ def _window_plot(ens, fits, window: str, ax=None, mode: str = "config"):
     ax2.set_ylim(bottom=0)
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="lower right", framealpha=0.8)
+    fig.legend(h1 + h2, l1 + l2, fontsize=7, loc="outside lower center", ncol=4, frameon=False)
     ax.set_xlim(t[0], t[-1])
     return fig, ax, ax2
 
