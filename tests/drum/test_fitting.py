@@ -132,3 +132,31 @@ def test_ensemble_memory_does_not_grow_with_batches(tmp_path):
         peaks.append(tracemalloc.get_traced_memory()[1])
         tracemalloc.stop()
     assert peaks[1] < 1.3 * peaks[0], peaks
+
+
+def test_heavy_tailed_lambda_unweighted_fit_is_unbiased(tmp_path):
+    """Skewed per-replica noise (like per-step λ): OLS finds the zero, 1/SEM² weights do not."""
+    import xarray as xr
+
+    paths = synthetic_runs(tmp_path, n_batches=2, batch_size=4, noise=0.0, seed=5)
+    rng = np.random.default_rng(11)
+    skewed = []
+    for p in paths:
+        ds = xr.open_dataset(p).load()
+        x = ds["lambda_decay"].values
+        # mean-zero, right-skewed noise (skewness 2): small SEM where the draws are low
+        ds["lambda_decay"].values = x + 1.5 * (rng.exponential(1.0, x.shape) - 1.0)
+        skewed.append(p.with_name("skewed_" + p.name))
+        ds.to_netcdf(skewed[-1])
+    paths = skewed
+    ens = reduce_runs(paths)
+    units = load_units(paths)
+    cfg = {**FITS, "auto_windows": False, "bootstrap_resamples": 100}
+    ols = {r.quantity: r for r in drum_fits(ens, units, cfg)[0]}["decay_sign_change_time"]
+    wls = {r.quantity: r for r in drum_fits(ens, units, {**cfg, "weighted": True})[0]}[
+        "decay_sign_change_time"
+    ]
+    assert abs(ols.value - 8.0) < 4 * ols.fit_error
+    # the weighted fit's level at 8 s is pulled low (true level 0), moving the zero by seconds
+    assert ols.coefficients[0] > -0.1 and wls.coefficients[0] < -0.3
+    assert abs(wls.value - 8.0) > 1.0
