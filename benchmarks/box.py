@@ -60,7 +60,7 @@ def cost(n_ls=(10, 20), gamma=2.0, steps=30000):
         )
 
 
-def hazards(gamma=1.5, n_l=10, transient=6):
+def hazards(gamma=1.5, n_l=10, transient=6, only=None):
     cases = [
         ("crystal", "spanning", "sine", 0.0, 0.6),
         ("crystal", "spanning", "sine", 2.0, 0.6),
@@ -70,6 +70,8 @@ def hazards(gamma=1.5, n_l=10, transient=6):
         ("random", "spanning", "sine", 2.0, 0.6),
         ("random", "spanning", "sine", 0.0, 0.6),
     ]
+    if only:
+        cases = [cases[i] for i in only]
     print(f"Γ = {gamma}, N_l = {n_l}, transient {transient} periods")
     print("start    rows      start_phase ramp mu_side | v_cm/Aω v_disk/Aω | psi6 prep  start")
     for kind, rows, phase, ramp, mu_side in cases:
@@ -98,8 +100,10 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--hazards", action="store_true")
     ap.add_argument("--gamma", type=float, default=None)
+    ap.add_argument("--n-l", type=int, default=10)
+    ap.add_argument("--cases", type=int, nargs="*", default=None, help="indices of the cases")
     args = ap.parse_args()
     if args.hazards:
-        hazards(gamma=args.gamma or 1.5)
+        hazards(gamma=args.gamma or 1.5, n_l=args.n_l, only=args.cases)
     else:
         cost(gamma=args.gamma or 2.0)

@@ -108,7 +108,7 @@ def fig3_phase_diagram(points: pd.DataFrame, thresholds: pd.DataFrame):
     thresholds : DataFrame
         Columns init, N_l, criterion, Gamma, Gamma_low, Gamma_high, status.
     """
-    fig, ax = plt.subplots(figsize=(6.2, 4.6), layout="constrained")
+    fig, ax = plt.subplots(figsize=(8.0, 4.6), layout="constrained")
     offsets = {"random": -0.6, "crystal": 0.6}
     # grid points: phase found at each (N_l, Γ)
     for init, g in points.groupby("init"):
@@ -132,25 +132,28 @@ def fig3_phase_diagram(points: pd.DataFrame, thresholds: pd.DataFrame):
             color=color, fillstyle=fill, ms=7, capsize=3, lw=1, ls="-" if ok.sum() > 1 else "",
             label=f"{crit}, {init}", zorder=3,
         )  # fmt: skip
-        # outside the grid: an arrow from the grid end
+        # outside the grid: the marker at the grid end with an arrow beyond it
         for xi, l_, h_, st in zip(x, lo, hi, g["status"], strict=True):
-            if st == "above_grid" and np.isfinite(l_):
-                ax.annotate("", (xi, l_ + 0.15), (xi, l_), arrowprops={"arrowstyle": "->",
-                            "color": color})  # fmt: skip
-            elif st == "below_grid" and np.isfinite(h_):
-                ax.annotate("", (xi, h_ - 0.15), (xi, h_), arrowprops={"arrowstyle": "->",
-                            "color": color})  # fmt: skip
+            edge, step = (l_, 0.2) if st == "above_grid" else (h_, -0.2)
+            if st in ("above_grid", "below_grid") and np.isfinite(edge):
+                ax.plot([xi], [edge], INIT_MARKERS.get(init, "o"), color=color, fillstyle=fill,
+                        ms=7, zorder=3)  # fmt: skip
+                ax.annotate("", (xi, edge + step), (xi, edge),
+                            arrowprops={"arrowstyle": "->", "color": color})  # fmt: skip
     ax.axhline(1.0, color="0.7", lw=0.8, ls=":")
     n_ls = points["N_l"].to_numpy(float)
     ax.set_xlim(n_ls.min() - 5.0, n_ls.max() + 5.0)
+    g_all = points["Gamma"].to_numpy(float)
+    ax.set_ylim(max(0.0, g_all.min() - 0.35), g_all.max() + 0.35)
     ax.set_xlabel(r"$N_l\,\sigma$")
     ax.set_ylabel(r"$\Gamma$")
     sec = ax.secondary_yaxis(
         "right", functions=(lambda g: np.square(g), lambda k: np.sqrt(np.clip(k, 0, None)))
     )
     sec.set_ylabel(r"$K_m = \Gamma^2$")
-    ax.legend(fontsize=7, loc="upper left", title="thresholds; squares: grid (open comoving, "
-              "grey bouncing, black convective)", title_fontsize=6)  # fmt: skip
+    fig.legend(fontsize=7, loc="outside right upper", title="thresholds (arrows: beyond the\n"
+               "grid); squares: grid points\n(open comoving, grey bouncing,\nblack convective)",
+               title_fontsize=7)  # fmt: skip
     return fig
 
 
@@ -258,6 +261,7 @@ def fig5_slip_probability(
                 ax.axvline(1.0 / b, color="k", ls="--", lw=0.9)
             edges = np.concatenate([[0.0], bps, [np.inf]])
             kall = g["K_m"].to_numpy()
+            labels = [f"Arrhenius fits, $N_l$ = {int(n_l)}:"]
             # random: one curve over the whole range (as the paper); crystal: per region
             draw = ["all"] if (init == "random" or not regions) else regions
             for r_i, region in enumerate(draw):
@@ -273,9 +277,9 @@ def fig5_slip_probability(
                 e, se = float(eb["value"].iloc[0]), float(eb["se"].iloc[0])
                 log_a = float(la["value"].iloc[0])
                 ax.plot(xx, np.exp(log_a - e * xx), "-", color=c, lw=1.2)
-                label = f"{region}: $E_b$ = {e:.3g} ± {se:.2g}"
-                ax.text(xx.mean(), np.exp(log_a - e * xx.mean()) * 1.6, label, fontsize=7,
-                        ha="center")  # fmt: skip
+                labels.append(f"{region}: $E_b$ = {e:.3g} ± {se:.2g}")
+            ax.text(0.03, 0.03, "\n".join(labels), transform=ax.transAxes, ha="left",
+                    va="bottom", fontsize=7, bbox={"fc": "white", "ec": "0.7"})  # fmt: skip
         ax.set_yscale("log")
         ax.set_xlabel(r"$1/K_m$")
         ax.set_ylabel(r"slip probability $p_s$")
