@@ -55,8 +55,8 @@ NV = 11
 RADIUS, INV_MASS, INV_INERTIA, SPIN, TORQUE, T_PREV, XI_LEFT, XI_RIGHT, XI_BOTTOM = range(9)
 NS = 9
 # rows of ivec (NI, N)
-IS_WALL, CONTACTS, CELL_ITEMS, CELL_OF = range(4)
-NI = 4
+IS_WALL, CONTACTS, CELL_ITEMS, CELL_OF, PAIR_CONTACTS = range(5)
+NI = 5
 # rows of pair_c (NPC, P): a_i + a_j, overlap bound, m_eff, a_i - a_j
 P_SUM, P_LIM, P_MEFF, P_DIFF = range(4)
 NPC = 4
@@ -74,7 +74,8 @@ NCLOCK = 5
 # counters (8,)
 STEP, N_PAIRS, N_REBUILDS, FORCE_REBUILD, LOG2_SCALE, CONTACT_SUM, STEPS_RUN, N_WALLS = range(8)
 LAST_PAIR_CONTACTS = 8  # contacts among listed pairs at the last evaluation (pass choice)
-NCOUNT = 9
+COUNT_STALE = 9  # the per-disk pair-contact counts must be recomputed (list rebuilt)
+NCOUNT = 10
 # info (4,): status, particle, other, step
 OK, NONFINITE, DEEP_OVERLAP, LIST_OVERFLOW, TANGENT_NONFINITE = range(5)
 # "other" codes for flat walls in info
@@ -179,6 +180,7 @@ def _rebuild(
     counters[N_PAIRS] = npairs
     counters[N_REBUILDS] += 1
     counters[FORCE_REBUILD] = 0
+    counters[COUNT_STALE] = 1
     return True
 
 
@@ -494,6 +496,7 @@ def _drum_pairs_tangent(buf, ssum, slim, touch, law, npairs):
     gya = buf[B_G1]
     ncon = 0
     bad = False
+    changed = False
     for k in range(npairs):
         dx = dxa[k]
         dy = dya[k]
@@ -530,10 +533,12 @@ def _drum_pairs_tangent(buf, ssum, slim, touch, law, npairs):
         fya[k] = fy if t else 0.0
         gxa[k] = gx if t else 0.0
         gya[k] = gy if t else 0.0
-        touch[k] = 1 if t else 0
-        ncon += 1 if t else 0
+        c = 1 if t else 0
+        changed |= touch[k] != c
+        touch[k] = c
+        ncon += c
         bad |= -delta > slim[k]
-    return ncon, bad
+    return ncon, bad, changed
 
 
 @njit
@@ -597,8 +602,9 @@ def _box_pairs(buf, ssum, slim, smeff, sdiff, pair_xi, touch, law, dt_hist, npai
 
 
 @njit
-def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, count):
-    """Add the pair forces (and perturbations, torques, contact counts) to the disks.
+def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, recount):
+    """Add the pair forces (and perturbations, torques) to the disks; with ``recount``, count
+    each disk's touching pairs into ``PAIR_CONTACTS``.
 
     Row by row of the half list: the owner's sums stay in registers (rows share ``i``, so
     adding to memory pair by pair would chain store-to-load forwarding).
@@ -608,19 +614,14 @@ def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, 
     for k in range(f.shape[0]):
         f[k] = mg[k]
     n = pair_start.shape[0] - 1
-    pj = pair_ij[1]
+    pj = pair_ij[PJ]
     fx = buf[B_FX]
     fy = buf[B_FY]
     g0 = buf[B_G0]
     g1 = buf[B_G1]
     two = np.uint32(2)
     one = np.uint32(1)
-    contacts = ivec[CONTACTS]
-    if tangent or count:
-        for i in range(n):
-            contacts[i] = 0
     if tangent:
-        # forces, their perturbation and contact counts, every step of a tangent run
         tf = _flat(vec[T_FRC])
         for k in range(tf.shape[0]):
             tf[k] = 0.0
@@ -633,10 +634,8 @@ def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, 
             ay = 0.0
             bx = 0.0
             by = 0.0
-            ci = 0
             for k in range(k0, k1):
-                j = pj[k]
-                j2 = two * j
+                j2 = two * pj[k]
                 a = fx[k]
                 b = fy[k]
                 ax += a
@@ -649,29 +648,22 @@ def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, 
                 by += b
                 tf[j2] -= a
                 tf[j2 + one] -= b
-                c = touch[k]
-                ci += c
-                contacts[j] += c
             f[2 * i] += ax
             f[2 * i + 1] += ay
             tf[2 * i] += bx
             tf[2 * i + 1] += by
-            contacts[i] += ci
-        return
-    if torques:
+    elif torques:
         trq = sca[TORQUE]
         for i in range(n):
             trq[i] = 0.0
-    for i in range(n):
-        k0 = pair_start[i]
-        k1 = pair_start[i + 1]
-        if k0 == k1:
-            continue
-        ax = 0.0
-        ay = 0.0
-        ti = 0.0
-        ci = 0
-        if torques:
+        for i in range(n):
+            k0 = pair_start[i]
+            k1 = pair_start[i + 1]
+            if k0 == k1:
+                continue
+            ax = 0.0
+            ay = 0.0
+            ti = 0.0
             for k in range(k0, k1):
                 j = pj[k]
                 j2 = two * j
@@ -683,8 +675,17 @@ def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, 
                 f[j2 + one] -= b
                 ti += g0[k]
                 trq[j] += g1[k]
+            f[2 * i] += ax
+            f[2 * i + 1] += ay
             trq[i] += ti
-        else:
+    else:
+        for i in range(n):
+            k0 = pair_start[i]
+            k1 = pair_start[i + 1]
+            if k0 == k1:
+                continue
+            ax = 0.0
+            ay = 0.0
             for k in range(k0, k1):
                 j2 = two * pj[k]
                 a = fx[k]
@@ -693,14 +694,19 @@ def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, 
                 ay += b
                 f[j2] -= a
                 f[j2 + one] -= b
-        f[2 * i] += ax
-        f[2 * i + 1] += ay
-        if count:
-            for k in range(k0, k1):
+            f[2 * i] += ax
+            f[2 * i + 1] += ay
+    if recount:
+        pc = ivec[PAIR_CONTACTS]
+        for i in range(n):
+            pc[i] = 0
+        for i in range(n):
+            ci = 0
+            for k in range(pair_start[i], pair_start[i + 1]):
                 c = touch[k]
                 ci += c
-                contacts[pj[k]] += c
-            contacts[i] += ci
+                pc[pj[k]] += c
+            pc[i] += ci
 
 
 @njit
@@ -770,7 +776,7 @@ def _gather_compact(vec, sca, pair_ij, pair_c, pair_xi, buf, npairs, mode):
 
 
 @njit
-def _scatter_compact(vec, sca, ivec, pair_ij, buf, pair_xi, m, tangent, torques, count):
+def _scatter_compact(vec, sca, ivec, pair_ij, buf, pair_xi, m, tangent, torques, recount):
     """:func:`_scatter` over the m compacted (touching) pairs; writes box histories back."""
     f = _flat(vec[FRC])
     mg = _flat(vec[MG])
@@ -785,10 +791,10 @@ def _scatter_compact(vec, sca, ivec, pair_ij, buf, pair_xi, m, tangent, torques,
     g1 = buf[B_G1]
     two = np.uint32(2)
     one = np.uint32(1)
-    contacts = ivec[CONTACTS]
+    contacts = ivec[PAIR_CONTACTS]
     trq = sca[TORQUE]
     tf = _flat(vec[T_FRC])
-    if tangent or count:
+    if recount:
         for i in range(contacts.shape[0]):
             contacts[i] = 0
     if tangent:
@@ -820,7 +826,7 @@ def _scatter_compact(vec, sca, ivec, pair_ij, buf, pair_xi, m, tangent, torques,
             trq[i] += g0[q]
             trq[j] += g1[q]
             pair_xi[k] = buf[B_XI, q]
-        if tangent or count:
+        if recount:
             contacts[i] += 1
             contacts[j] += 1
 
@@ -839,12 +845,36 @@ def _wall_gap(w, pos, i, fw, zb):
 
 
 @njit
+def _wall_candidates(w, vec, sca, fw, zb, xi_w, reset, out):
+    """Mobile disks touching flat wall ``w``, listed in ``out``; returns how many.
+
+    With ``reset``, the shear history of the other disks is zeroed. Most disks touch no
+    wall, so the branch is well predicted and the contact loops only see the listed disks.
+    """
+    pos = vec[POS]
+    mob = vec[MOB2]
+    radius = sca[RADIUS]
+    n = pos.shape[0]
+    m = 0
+    col = 0 if w < 2 else 1
+    ref = fw[1] if w == 0 else (fw[3] if w == 1 else zb)
+    sgn = -1.0 if w == 1 else 1.0
+    for i in range(n):
+        t = (sgn * (pos[i, col] - ref) <= radius[i]) & (mob[i, 0] != 0.0)
+        if reset:
+            xi_w[i] = xi_w[i] if t else 0.0
+        if t:
+            out[m] = i
+            m += 1
+    return m
+
+
+@njit
 def _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step):
     """Drum-law contacts with the flat walls. Returns the contact count, or -1 (bad)."""
     pos = vec[POS]
     vel = vec[VEL]
     frc = vec[FRC]
-    mob = vec[MOB2]
     tr = vec[T_POS]
     tv = vec[T_VEL]
     tf = vec[T_FRC]
@@ -858,14 +888,15 @@ def _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step
     for w in range(3):
         if fw[2 * w] == 0.0:
             continue
+        cand = ivec[CELL_OF]  # scratch between list builds
+        m = _wall_candidates(w, vec, sca, fw, zb, sca[T_PREV], False, cand)
         nx = 1.0 if w == 0 else (-1.0 if w == 1 else 0.0)
         ny = 1.0 if w == 2 else 0.0
         wv = vb if w == 2 else 0.0
-        for i in range(pos.shape[0]):
+        for q in range(m):
+            i = cand[q]
             ai = radius[i]
             delta = _wall_gap(w, pos, i, fw, zb) - ai
-            if delta > 0.0 or mob[i, 0] == 0.0:
-                continue
             if -delta > 0.5 * ai:
                 _fail(info, DEEP_OVERLAP, i, -1 - w, step)
                 return -1
@@ -907,7 +938,6 @@ def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
     pos = vec[POS]
     vel = vec[VEL]
     frc = vec[FRC]
-    mob = vec[MOB2]
     radius = sca[RADIUS]
     inv_mass = sca[INV_MASS]
     spin = sca[SPIN]
@@ -918,16 +948,16 @@ def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
         if fw[2 * w] == 0.0:
             continue
         xi_w = sca[XI_LEFT + w]
+        cand = ivec[CELL_OF]  # scratch between list builds
+        m = _wall_candidates(w, vec, sca, fw, zb, xi_w, True, cand)
         nx = 1.0 if w == 0 else (-1.0 if w == 1 else 0.0)
         ny = 1.0 if w == 2 else 0.0
         wv = vb if w == 2 else 0.0
         mu_w = law[5] if w == 2 else law[6]
-        for i in range(pos.shape[0]):
+        for q in range(m):
+            i = cand[q]
             ai = radius[i]
             overlap = ai - _wall_gap(w, pos, i, fw, zb)
-            if overlap < 0.0 or mob[i, 0] == 0.0:
-                xi_w[i] = 0.0
-                continue
             if overlap > 0.5 * ai:
                 _fail(info, DEEP_OVERLAP, i, -1 - w, step)
                 return -1
@@ -1025,6 +1055,19 @@ def _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin):
 
 
 @njit
+def _contact_counts_done(ivec, counters, count, recount, compact):
+    """Copy pair-contact counts into CONTACTS (flat walls add theirs next); keep track of
+    whether the stored counts and touch flags still match the list."""
+    if count:
+        pc = ivec[PAIR_CONTACTS]
+        contacts = ivec[CONTACTS]
+        for i in range(pc.shape[0]):
+            contacts[i] = pc[i]
+    # compacted passes index the touch flags by compact position, not by pair
+    counters[COUNT_STALE] = 0 if (recount and not compact) else 1
+
+
+@njit
 def _has_flat(fw):
     return fw[0] != 0.0 or fw[2] != 0.0 or fw[4] != 0.0
 
@@ -1066,17 +1109,21 @@ def _drum_forces(
         ssum = pair_c[P_SUM]
         slim = pair_c[P_LIM]
     if tangent:
-        ncon, bad = _drum_pairs_tangent(buf, ssum, slim, touch, law, m)
+        ncon, bad, changed = _drum_pairs_tangent(buf, ssum, slim, touch, law, m)
     else:
         ncon, bad = _drum_pairs(buf, ssum, slim, touch, law, m)
+        changed = True
     if bad:
         i, j = _first_deep_pair(pair_ij, buf, ssum, slim, m, compact)
         _fail(info, DEEP_OVERLAP, i, j, step)
         return -1
+    # per-disk counts of touching pairs are redone only if some pair's flag changed
+    recount = count and (compact or changed or counters[COUNT_STALE] != 0)
     if compact:
-        _scatter_compact(vec, sca, ivec, pair_ij, buf, buf[B_XI], m, tangent, False, count)
+        _scatter_compact(vec, sca, ivec, pair_ij, buf, buf[B_XI], m, tangent, False, recount)
     else:
-        _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, False, count)
+        _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, False, recount)
+    _contact_counts_done(ivec, counters, count, recount, compact)
     counters[LAST_PAIR_CONTACTS] = ncon
     if _has_flat(fw):
         nw = _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step)
@@ -1136,6 +1183,7 @@ def _box_forces(
         _scatter_compact(vec, sca, ivec, pair_ij, buf, pair_xi, m, False, True, count)
     else:
         _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, False, True, count)
+    _contact_counts_done(ivec, counters, count, count, compact)
     counters[LAST_PAIR_CONTACTS] = ncon
     if _has_flat(fw):
         nw = _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
