@@ -25,6 +25,8 @@ if "box" in config:
             out("box", "init", "N_l={box_nl},init={box_init}", "replica_{box_rep}.nc"),
         params:
             json=lambda w: as_json(box_layout.init_params(BOX)),
+        conda:
+            "../envs/granpipe.yaml"
         log:
             log_path("box", "init", "N_l={box_nl},init={box_init}", "replica_{box_rep}.log"),
         threads: 1
@@ -58,6 +60,8 @@ if "box" in config:
             previous=lambda w, input: (
                 f"--previous {input.previous}" if "previous" in input.keys() else ""
             ),
+        conda:
+            "../envs/granpipe.yaml"
         log:
             log_path(
                 "box",
@@ -90,6 +94,8 @@ if "box" in config:
             out("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init}.nc"),
         params:
             json=lambda w: as_json(box_layout.ensemble_params(BOX)),
+        conda:
+            "../envs/granpipe.yaml"
         log:
             log_path("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init}.log"),
         threads: 1
@@ -109,6 +115,8 @@ if "box" in config:
         params:
             json=lambda w: as_json(box_layout.fits_params(BOX)),
             outdir=lambda w: out("box", "fits"),
+        conda:
+            "../envs/granpipe.yaml"
         log:
             log_path("box", "fits.log"),
         threads: 1
@@ -152,6 +160,8 @@ if "box" in config:
             fitsdir=lambda w: out("box", "fits"),
             outdir=lambda w: out("box", "figures"),
             inits=lambda w, input: " ".join(f"--init-file {f}" for f in input.init),
+        conda:
+            "../envs/granpipe.yaml"
         log:
             log_path("box", "figures.log"),
         threads: 1
