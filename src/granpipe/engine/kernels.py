@@ -1414,6 +1414,7 @@ def _box_replica(
 def _refresh_replica(
     law_id,
     tangent,
+    rebuild,
     g,
     law,
     wd,
@@ -1443,10 +1444,12 @@ def _refresh_replica(
 
     Uses full-step velocities and wall velocities at the current time; the shear history is
     not advanced. Used when a state is created or edited (:meth:`Simulation.refresh`).
+    Without ``rebuild`` the walls and the list stay as they are (setting a tangent vector:
+    the caller keeps the forces and takes only their perturbation).
     """
     t = _time(clock, counters, dt)
     n_walls = counters[N_WALLS]
-    if n_walls > 0:
+    if n_walls > 0 and rebuild:
         omega = wall_omega(wd, t)
         _update_wall_disks(vec, sca, walls, n_walls, wd, clock[THETA], omega)
         clock[LAST_OMEGA] = omega
@@ -1462,7 +1465,7 @@ def _refresh_replica(
     if i >= 0:
         return _fail(info, NONFINITE, i, -1, step)
     if law_id == 0:
-        if not _rebuild(
+        if rebuild and not _rebuild(
             vec,
             sca,
             ivec,
@@ -1496,7 +1499,7 @@ def _refresh_replica(
             step,
         )
     else:
-        if not _rebuild_with_history(
+        if rebuild and not _rebuild_with_history(
             vec,
             sca,
             ivec,
@@ -1545,49 +1548,6 @@ def _refresh_replica(
             q = tr[i, 0] ** 2 + tr[i, 1] ** 2 + tv[i, 0] ** 2 + tv[i, 1] ** 2
             prev[i] = q * mob[i, 0]
     return OK
-
-
-@njit
-def _tangent_init_replica(
-    g, law, fw, vec, sca, ivec, pair_start, pair_ij, pair_c, buf, touch, clock, counters, dt, info
-):
-    """Force perturbation of a freshly set tangent vector on the current list.
-
-    Forces, contact counts and touch flags are recomputed as a side effect (the caller
-    restores forces and counts); only ``T_FRC`` and ``T_PREV`` are meant to change.
-    """
-    t = _time(clock, counters, dt)
-    zb = 0.0
-    vb = 0.0
-    if fw[4] != 0.0:
-        zb = bottom_height(fw, t)
-        vb = bottom_velocity(fw, t)
-    _set_gravity(vec, sca, g[0], g[1])
-    _drum_forces(
-        vec,
-        sca,
-        ivec,
-        law,
-        fw,
-        zb,
-        vb,
-        pair_start,
-        pair_ij,
-        pair_c,
-        buf,
-        touch,
-        counters,
-        True,
-        True,
-        info,
-        counters[STEP],
-    )
-    tr = vec[T_POS]
-    tv = vec[T_VEL]
-    prev = sca[T_PREV]
-    mob = vec[MOB2]
-    for i in range(tr.shape[0]):
-        prev[i] = (tr[i, 0] ** 2 + tr[i, 1] ** 2 + tv[i, 0] ** 2 + tv[i, 1] ** 2) * mob[i, 0]
 
 
 # --------------------------------------------------------------------------- drivers
@@ -1845,6 +1805,7 @@ def box_run_parallel(
 def refresh_serial(
     law_id,
     tangent,
+    rebuild,
     g,
     law,
     wd,
@@ -1875,6 +1836,7 @@ def refresh_serial(
         _refresh_replica(
             law_id,
             tangent,
+            rebuild,
             g,
             law,
             wd,
@@ -1895,31 +1857,6 @@ def refresh_serial(
             touch[r],
             cell_count[r],
             cell_start[r],
-            clock[r],
-            counters[r],
-            dt,
-            info[r],
-        )
-
-
-@njit
-def tangent_init_serial(
-    g, law, fw, vec, sca, ivec, pair_start, pair_ij, pair_c, buf, touch, clock, counters, dt, info
-):
-    """:func:`_tangent_init_replica` over replicas."""
-    for r in range(vec.shape[0]):
-        _tangent_init_replica(
-            g,
-            law,
-            fw,
-            vec[r],
-            sca[r],
-            ivec[r],
-            pair_start[r],
-            pair_ij[r],
-            pair_c[r],
-            buf[r],
-            touch[r],
             clock[r],
             counters[r],
             dt,

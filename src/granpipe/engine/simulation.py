@@ -597,19 +597,13 @@ class Simulation:
             **ctx,
         )
 
-    def refresh(self, state) -> None:
-        """Re-place the walls, rebuild the neighbour list and re-evaluate the forces.
-
-        Call after editing positions or velocities of a state in place. Forces use the
-        current (full-step) velocities; shear histories are kept, not advanced. With a
-        tangent vector set, its force perturbation is re-evaluated too.
-        """
-        skin = self._check(state)
+    def _refresh_kernel(self, state, tangent, rebuild, skin):
         g, law, wd, fw = self._params()
         s = state._s
         K.refresh_serial(
             self.law.law_id,
-            bool(s["has_tangent"]),
+            tangent,
+            rebuild,
             g,
             law,
             wd,
@@ -635,6 +629,16 @@ class Simulation:
             self.dt,
             s["info"],
         )
+
+    def refresh(self, state) -> None:
+        """Re-place the walls, rebuild the neighbour list and re-evaluate the forces.
+
+        Call after editing positions or velocities of a state in place. Forces use the
+        current (full-step) velocities; shear histories are kept, not advanced. With a
+        tangent vector set, its force perturbation is re-evaluated too.
+        """
+        skin = self._check(state)
+        self._refresh_kernel(state, bool(state._s["has_tangent"]), True, skin)
         self._raise(state)
 
     def set_tangent(self, state, dr, dv) -> None:
@@ -662,30 +666,12 @@ class Simulation:
         s["vec"][:, K.T_VEL] = np.where(wall, 0.0, dv)
         s["counters"][:, K.LOG2_SCALE] = 0
         s["has_tangent"] = True
-        g, law, wd, fw = self._params()
+        skin = s["skin"]
         saved_f = s["vec"][:, K.FRC].copy()
-        saved_c = s["ivec"][:, K.CONTACTS].copy()
-        saved_t = s["touch"].copy()
-        K.tangent_init_serial(
-            g,
-            law,
-            fw,
-            s["vec"],
-            s["sca"],
-            s["ivec"],
-            s["pair_start"],
-            s["pair_ij"],
-            s["pair_c"],
-            s["buf"],
-            s["touch"],
-            s["clock"],
-            s["counters"],
-            self.dt,
-            s["info"],
-        )
+        # forces at the current (full-step) velocities give the perturbation; the stored
+        # forces (from half-step velocities) are kept, so the trajectory does not change
+        self._refresh_kernel(state, True, False, skin)
         s["vec"][:, K.FRC] = saved_f
-        s["ivec"][:, K.CONTACTS] = saved_c
-        s["touch"][...] = saved_t
         self._raise(state)
 
     def random_tangent(self, state, rng, fraction=0.1) -> None:
