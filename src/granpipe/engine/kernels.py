@@ -86,7 +86,6 @@ _RENORM_HI = 2.0**400
 _RENORM_LO = 2.0**-400
 _RENORM_MAX = 2.0**950
 _BIG = 1e300
-_SQRT1_2 = 0.7071067811865476
 
 
 @njit
@@ -241,23 +240,26 @@ def _set_gravity(vec, sca, gx, gy):
 def _kick_drift(vec, sca, dt, thr, spin_on, tangent):
     """First half kick and drift (walls too: zero inverse mass, positions reset after).
 
-    Returns True if some disk moved more than ``thr * sqrt(2)`` in x or y since the
-    last build (a conservative test of a displacement above ``thr`` = skin/2).
+    Returns True if some disk is now farther than ``thr`` (= skin/2) from where it was
+    at the last list build.
     """
     p = _flat(vec[POS])
     v = _flat(vec[VEL])
     f = _flat(vec[FRC])
     im = _flat(vec[IM2])
-    b = _flat(vec[POS_BUILD])
     h = 0.5 * dt
-    lim = thr * _SQRT1_2
-    moved = False
     for k in range(p.shape[0]):
         w = v[k] + h * (f[k] * im[k])
         v[k] = w
-        x = p[k] + dt * w
-        p[k] = x
-        moved |= abs(x - b[k]) > lim
+        p[k] = p[k] + dt * w
+    pos = vec[POS]
+    b = vec[POS_BUILD]
+    thr2 = thr * thr
+    moved = False
+    for i in range(pos.shape[0]):
+        dx = pos[i, 0] - b[i, 0]
+        dy = pos[i, 1] - b[i, 1]
+        moved |= dx * dx + dy * dy > thr2
     if spin_on:
         spin = sca[SPIN]
         trq = sca[TORQUE]
