@@ -148,3 +148,38 @@ def test_box_analytic_contact_values():
     """Box paper Eq. A5; dt = t_c/50 gives about 141,000 steps per drive period."""
     t_c = BOX.contact_time(0.5)
     assert 2 * math.pi / (t_c / 50) == pytest.approx(141_000, rel=5e-3)
+
+
+@pytest.mark.parametrize("want_slip", [False, True])
+@pytest.mark.parametrize("normal", [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0)])
+def test_box_flat_wall_jacobian_matches_finite_differences(normal, want_slip):
+    """Jacobian of (F_x, F_y, tau) w.r.t. (h, v, w) against a flat wall, fixed history."""
+    rng = np.random.default_rng(21 + want_slip)
+    n = np.array(normal)
+    t = np.array([-n[1], n[0]])
+    dt = 4.4446e-5
+    checked = 0
+    while checked < 15:
+        a = 0.5
+        h = a - rng.uniform(1e-5, 2e-3)
+        v = n * rng.normal(0, 0.3) + t * rng.normal(0, 0.3)
+        w = rng.normal(0, 1.0)
+        xi = rng.normal(0, 2e-4) * (20.0 if want_slip else 1.0)
+        lev = a - 0.5 * (a - h)
+        vt = v @ t - lev * w
+        f_n = BOX.kappa_n * (a - h) - BOX.gamma_n * (v @ n)
+        f_t = -BOX.kappa_t * (xi + vt * dt) - BOX.gamma_t * vt
+        margin = abs(abs(f_t) - BOX.mu * abs(f_n))
+        if (abs(f_t) > BOX.mu * abs(f_n)) != want_slip or margin < 1e-3 * abs(f_n):
+            continue
+
+        def f(x, xi=xi, a=a):
+            force, tau, _ = BOX.wall_force(x[0], x[1:3], x[3], a, 1.0, n, xi, dt)
+            return np.array([force[0], force[1], tau])
+
+        jac = BOX.wall_jacobian(h, v, w, a, 1.0, n, xi, dt)
+        fd = central_difference(f, np.r_[h, v, w], [1e-9, 1e-7, 1e-7, 1e-7])
+        assert_jacobian_close(jac[:, :1], fd[:, :1])
+        assert_jacobian_close(jac[:, 1:3], fd[:, 1:3])
+        assert_jacobian_close(jac[:, 3:], fd[:, 3:])
+        checked += 1

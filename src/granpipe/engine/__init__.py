@@ -33,8 +33,14 @@ parallel=True)``
     mobile, contacts`` (per-disk contact counts, walls included), ``time``,
     ``wall_angle``, ``tangent`` (dr, dv at true scale), ``tangent_stored``,
     ``tangent_log2_scale``; ``kinetic_energy()``, ``max_speed()``, ``global_speed()``,
-    ``speeds()``, ``neighbour_stats()``, ``copy()``. ``Ensemble.stack(states)``,
-    ``ens[r]`` (a State sharing memory). Arrays of an ensemble are ``(R, N, ...)``.
+    ``speeds()``, ``neighbour_stats()``, ``reset_counters()``, ``copy()``;
+    ``to_arrays() -> dict`` and ``State.from_arrays(dict)`` save and restore everything
+    a run needs to continue bit-identically (netCDF- or ``np.savez``-ready).
+    ``Ensemble.stack(states)``, ``ens[r]`` (a State sharing memory). Arrays of an
+    ensemble are ``(R, N, ...)``.
+``granpipe.engine.geometry``
+    ``ring_of_disks(n, diameter)`` (the drum wall), ``random_disks_in_circle``,
+    ``random_disks_in_box``, ``hexagonal_rows`` (the box crystal).
 ``Record``
     ``time (B,)``, ``global_speed``, ``local_lyapunov``, ``lyapunov_count`` (``(B,)`` or
     ``(R, B)``): exact block means over ``stride`` steps.
@@ -55,6 +61,22 @@ Conventions
 * Bad states (NaN/inf, an overlap deeper than half the smaller radius) stop the run
   with :class:`granpipe.errors.SimulationError` naming the particle, step and time
   (and ``other`` disk or wall, and ``replica`` for an ensemble).
+* Neighbour list: cell lists feed a Verlet half list with skin ``skin`` (default 0.1
+  of the smallest radius), rebuilt when some disk (wall disks included) is farther
+  than ``skin/2`` from where it was at the last build. Wall-wall pairs are left out.
+* Contacts touch at ``r <= a_i + a_j`` (the drum paper's ``delta <= 0``); the box
+  law's shear history lives per listed pair and per disk and flat wall, is carried
+  over list rebuilds, and is reset when a contact opens.
+* Threads: ``Simulation(parallel=True)`` runs an ensemble's replicas under numba's
+  ``prange`` (``numba.set_num_threads`` caps it); a State always runs serially in
+  the calling thread, without the GIL, so states may also be advanced side by side
+  from Python threads.
+* Performance (benchmarks/engine.py): the pair forces run as gather -> contact law
+  (vectorised) -> scatter over a flat pair list, and the law only on touching pairs
+  when fewer than half of the listed pairs touch. Measured on a shared 2-core EPYC
+  (thread CPU time, medians under load; best of 5 in brackets), ns per particle-step:
+  drum 24.6 (20.7) forward, 60.7 (46) with tangent; box driven at Gamma = 2: 18.7;
+  box dense crystal: 43.7 (36).
 
 Worked example
 --------------
@@ -74,16 +96,17 @@ Two disks on a collision course, then the drum of SPEC §1 in miniature::
     ring, radius = ring_of_disks(150, 1.3846)              # circumradius 33.057
     diam = np.where(np.arange(736) % 2 == 0, 1.0, 1.1667)
     rng = np.random.default_rng(0)
-    inner = random_disks_in_circle(rng, diam / 2, radius - 0.6923)
+    # start low: disks dropped from the top hit the pile hard enough to overlap > a/2
+    inner = random_disks_in_circle(rng, diam / 2, radius - 0.6923, y_max=0.0)
     pos = np.vstack([inner, ring])
     radii = np.r_[diam / 2, np.full(150, 0.6923)]
     masses = np.r_[diam**2, np.ones(150)]
     is_wall = np.arange(886) >= 736
     sim = Simulation(law, dt=1.14368e-3, wall_disks=WallDisks(omega=0.0))
     state = sim.new_state(pos, radii, masses, is_wall=is_wall)
-    while True:                                             # settle at rest
-        sim.run(state, 10_000)
-        if state.max_speed() < 1e-3:
+    for _ in range(100):                                    # settle at rest
+        sim.run(state, 5_000)
+        if state.kinetic_energy() / 736 < 1e-6:
             break
     t_rot = state.time                                      # rotate clockwise ...
     sim = sim.replace(wall_disks=WallDisks(omega=-2.4417e-4))

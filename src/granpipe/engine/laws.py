@@ -519,3 +519,106 @@ class BoxLaw:
                 *p,
             )
         return jac
+
+    def wall_force(self, h, v, spin, radius, mass, normal, xi=0.0, dt=0.0, mu=None):
+        """Box law against a flat wall at distance ``h`` (unit ``normal`` into the box).
+
+        The pair law with the wall's side infinitely heavy and not turning: ``m_eff = m``,
+        lever arm ``a - xi_n/2`` with ``xi_n = a - h``; ``mu`` defaults to ``mu_wall``.
+
+        Returns
+        -------
+        force : (2,) float64, torque : float, xi_new : float
+        """
+        n = np.asarray(normal, dtype=np.float64)
+        overlap = radius - h
+        if overlap < 0:
+            return np.zeros(2), 0.0, 0.0
+        p = self.params()
+        fx, fy, ti, _, xi_new, *_ = box_force(
+            n[0],
+            n[1],
+            overlap,
+            radius - 0.5 * overlap,
+            0.0,
+            v[0],
+            v[1],
+            spin,
+            0.0,
+            mass,
+            xi,
+            dt,
+            p[0],
+            p[1],
+            p[2],
+            p[3],
+            self.mu_w if mu is None else mu,
+        )
+        return np.array([fx, fy]), ti, xi_new
+
+    def wall_jacobian(self, h, v, spin, radius, mass, normal, xi=0.0, dt=0.0, mu=None):
+        """Jacobian (3, 4) of ``(F_x, F_y, tau)`` of :meth:`wall_force` w.r.t. ``(h, v, w)``."""
+        n = np.asarray(normal, dtype=np.float64)
+        overlap = radius - h
+        p = self.params()
+        mu_w = self.mu_w if mu is None else mu
+        lev = radius - 0.5 * overlap
+        out = box_force(
+            n[0],
+            n[1],
+            overlap,
+            lev,
+            0.0,
+            v[0],
+            v[1],
+            spin,
+            0.0,
+            mass,
+            xi,
+            dt,
+            p[0],
+            p[1],
+            p[2],
+            p[3],
+            mu_w,
+        )
+        f_n, f_t, slip = out[5], out[6], out[7]
+        jac = np.zeros((3, 4))
+        # a displacement n * dh of the disk; velocity and spin perturbations
+        for k, (dd, dv, dw) in enumerate(
+            [
+                (n, np.zeros(2), 0.0),
+                (0.0 * n, np.eye(2)[0], 0.0),
+                (0.0 * n, np.eye(2)[1], 0.0),
+                (0.0 * n, np.zeros(2), 1.0),
+            ]
+        ):
+            dfx, dfy, dti, _ = box_force_jvp(
+                n[0],
+                n[1],
+                0.0,
+                lev,
+                0.0,
+                v[0],
+                v[1],
+                spin,
+                0.0,
+                mass,
+                f_n,
+                f_t,
+                slip,
+                dt,
+                dd[0],
+                dd[1],
+                dv[0],
+                dv[1],
+                dw,
+                0.0,
+                p[0],
+                p[1],
+                p[2],
+                p[3],
+                mu_w,
+            )
+            jac[:, k] = dfx, dfy, dti
+        return jac
