@@ -12,9 +12,16 @@ REPO = Path(__file__).resolve().parents[2]
 SNAKEMAKE = str(Path(sys.executable).with_name("snakemake"))
 
 
+def snakemake_env() -> dict[str, str]:
+    """Environment for Snakemake runs: jobs call the `granpipe` console script, so this
+    interpreter's bin folder comes first on PATH."""
+    bindir = str(Path(sys.executable).parent)
+    return {**os.environ, "MPLBACKEND": "Agg", "PATH": bindir + os.pathsep + os.environ["PATH"]}
+
+
 def run_snakemake(*args, cwd=REPO, timeout=600, check=True):
     """Run snakemake with ``args`` in ``cwd``; return the CompletedProcess (text)."""
-    env = {**os.environ, "MPLBACKEND": "Agg"}
+    env = snakemake_env()
     proc = subprocess.run(
         [SNAKEMAKE, *args],
         cwd=cwd,

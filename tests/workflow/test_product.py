@@ -23,7 +23,7 @@ import pytest
 import xarray as xr
 import yaml
 
-from .conftest import SNAKEMAKE, copy_workflow, run_snakemake
+from .conftest import SNAKEMAKE, copy_workflow, run_snakemake, snakemake_env
 
 pytestmark = pytest.mark.workflow
 
@@ -212,6 +212,7 @@ def test_sigkill_mid_write_leaves_nothing_and_rerun_is_identical(quick):
     proc = subprocess.Popen(
         [SNAKEMAKE, "--cores", "1", "--configfile", "config/scratch.yaml", rel],
         cwd=workdir,
+        env=snakemake_env(),
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         start_new_session=True,
@@ -251,7 +252,8 @@ def test_second_workflow_on_same_directory_is_refused(quick):
     first = subprocess.Popen(
         [SNAKEMAKE, "--cores", "1", "--configfile", "config/scratch.yaml",
          "--forcerun", sim_rule, "--allowed-rules", sim_rule, "--", rel],
-        cwd=workdir, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        cwd=workdir, env=snakemake_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        text=True,
     )  # fmt: skip
     locks = workdir / ".snakemake" / "locks"
     deadline = time.monotonic() + 120
