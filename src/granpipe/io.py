@@ -148,10 +148,24 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         yield tmp
         with open(tmp, "rb") as fh:
             os.fsync(fh.fileno())
+        _fault_injection_pause()
         os.replace(tmp, path)
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def _fault_injection_pause() -> None:
+    """Sleep ``GRANPIPE_FAULT_DELAY_RENAME`` seconds between write and rename.
+
+    A fault-injection hook for the workflow tests: it holds a finished temporary file
+    in place long enough for a test to SIGKILL the job mid-write. Unset in normal runs.
+    """
+    delay = os.environ.get("GRANPIPE_FAULT_DELAY_RENAME")
+    if delay:
+        import time
+
+        time.sleep(float(delay))
 
 
 def write_dataset(

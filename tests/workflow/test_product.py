@@ -212,7 +212,8 @@ def test_sigkill_mid_write_leaves_nothing_and_rerun_is_identical(quick):
     proc = subprocess.Popen(
         [SNAKEMAKE, "--cores", "1", "--configfile", "config/scratch.yaml", rel],
         cwd=workdir,
-        env=snakemake_env(),
+        # The job pauses between writing its temporary file and renaming it.
+        env={**snakemake_env(), "GRANPIPE_FAULT_DELAY_RENAME": "30"},
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         start_new_session=True,
@@ -225,6 +226,8 @@ def test_sigkill_mid_write_leaves_nothing_and_rerun_is_identical(quick):
             tmp_seen = True
             break
         time.sleep(0.005)
+    assert tmp_seen, "the job ended before its temporary file appeared"
+    time.sleep(1.0)  # let the write get under way (the hook holds it before the rename)
     os.killpg(proc.pid, signal.SIGKILL)
     proc.wait()
     assert not target.exists(), "a killed job left a file under its final name"
@@ -235,8 +238,6 @@ def test_sigkill_mid_write_leaves_nothing_and_rerun_is_identical(quick):
         cwd=workdir, timeout=900,
     )  # fmt: skip
     assert data_bytes(target) == reference
-    if not tmp_seen:
-        pytest.fail("the job finished before its temporary file could be observed")
 
 
 def test_second_workflow_on_same_directory_is_refused(quick):
