@@ -55,8 +55,8 @@ def cost(n_ls=(10, 20), gamma=2.0, steps=30000):
         per_period = ns * 1e-9 * n * steps_per
         print(
             f"N_l = {n_l:3d} (N = {n:5d}): {ns:6.1f} ns per particle-step, "
-            f"{per_period:6.2f} s per period; a default point (6 + 10 periods): "
-            f"{16 * per_period:6.0f} s"
+            f"{per_period:6.2f} s per period; a default point (6.25 + 8 periods): "
+            f"{14.25 * per_period:6.0f} s"
         )
 
 
