@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analysis import box as ab
-from ..engine import FlatWalls
+from ..engine import FlatWalls, State
 from . import model
 from .prepare import box_simulation, disk_arrays
 
@@ -53,43 +53,23 @@ __all__ = [
 
 
 # ----------------------------------------------------------------- engine state I/O
-# The engine has no public save/restore of a State yet; these two functions read and
-# write its storage dict (``State._s``) so that a run can continue across files exactly.
-_STATE_SCALARS = ("dt", "skin", "has_tangent")
 _POS = 0  # row of the positions in the engine's per-disk vector storage (kernels.POS)
 
 
 def state_arrays(state) -> dict[str, np.ndarray]:
-    """Every array of an engine :class:`~granpipe.engine.State` (copies), plus its scalars."""
-    out = {}
-    for key, val in state._s.items():
-        if isinstance(val, np.ndarray):
-            out[key] = val.copy()
-    for key in _STATE_SCALARS:
-        out[key] = np.asarray(state._s[key])
-    return out
+    """Everything the engine needs to continue ``state`` exactly (``State.to_arrays``)."""
+    return state.to_arrays()
 
 
 def restore_state(sim, positions: np.ndarray, arrays: Mapping[str, np.ndarray]):
-    """A state of ``sim`` whose storage is overwritten by ``arrays`` (from :func:`state_arrays`).
-
-    ``positions`` only sizes the template state; every array is then replaced, so the
-    continued run is bit-identical to one that never stopped.
-    """
-    n = positions.shape[0]
-    radii, masses = disk_arrays(n)
-    state = sim.new_state(positions, radii, masses)
-    for key, val in state._s.items():
-        if isinstance(val, np.ndarray):
-            saved = np.asarray(arrays[key])
-            if saved.shape != val.shape:
-                raise ValueError(
-                    f"saved engine array {key!r} has shape {saved.shape}, expected {val.shape}"
-                )
-            val[...] = saved
-    state._s["dt"] = float(arrays["dt"])
-    state._s["skin"] = float(arrays["skin"])
-    state._s["has_tangent"] = bool(arrays["has_tangent"])
+    """The engine state saved by :func:`state_arrays` (``State.from_arrays``), checked
+    against ``positions`` (the saved per-disk positions) so a mismatched file fails loudly."""
+    state = State.from_arrays(dict(arrays))
+    if state.positions.shape != positions.shape:
+        raise ValueError(
+            f"saved engine state holds {state.positions.shape[0]} disks, expected "
+            f"{positions.shape[0]}"
+        )
     return state
 
 
