@@ -210,7 +210,7 @@ def test_sigkill_mid_write_leaves_nothing_and_rerun_is_identical(quick):
     target.unlink()
     rel = str(target.relative_to(workdir))
     proc = subprocess.Popen(
-        [SNAKEMAKE, "--cores", "1", "--configfile", "config/scratch.yaml", rel],
+        [SNAKEMAKE, "--cores", "1", "--configfile", "config/scratch.yaml", "--", rel],
         cwd=workdir,
         # The job pauses between writing its temporary file and renaming it.
         env={**snakemake_env(), "GRANPIPE_FAULT_DELAY_RENAME": "30"},
