@@ -29,6 +29,8 @@ rule drum_init:
         out("drum", "init", drum_layout.point_name(DRUM), "batch_{drum_batch}.nc"),
     params:
         json=lambda w: as_json(DRUM_SIM),
+    conda:
+        "../envs/granpipe.yaml"
     log:
         log_path("drum", "init", "batch_{drum_batch}.log"),
     threads: DRUM["ensemble"]["threads"]
@@ -50,6 +52,8 @@ rule drum_runs:
         out("drum", "runs", drum_layout.point_name(DRUM), "batch_{drum_batch}.nc"),
     params:
         json=lambda w: as_json(DRUM_SIM),
+    conda:
+        "../envs/granpipe.yaml"
     log:
         log_path("drum", "runs", "batch_{drum_batch}.log"),
     threads: DRUM["ensemble"]["threads"]
@@ -71,6 +75,8 @@ rule drum_ensemble:
         out("drum", drum_layout.ensemble_file(DRUM)),
     params:
         json=lambda w: as_json(DRUM_ENSEMBLE),
+    conda:
+        "../envs/granpipe.yaml"
     log:
         log_path("drum", "ensemble.log"),
     threads: 1
@@ -92,6 +98,8 @@ rule drum_fits:
         summary=out("drum", drum_layout.summary_file()),
     params:
         json=lambda w: as_json(DRUM_FITS),
+    conda:
+        "../envs/granpipe.yaml"
     log:
         log_path("drum", "fits.log"),
     threads: 1
@@ -134,6 +142,8 @@ rule drum_figures:
     params:
         json=lambda w: as_json({"figures": DRUM["figures"]}),
         outdir=lambda w, output: str(Path(output.fig2).parent),
+    conda:
+        "../envs/granpipe.yaml"
     log:
         log_path("drum", "figures.log"),
     threads: 1
