@@ -202,19 +202,30 @@ def scratch_target(tmp_path: Path) -> SlurmTarget:
 
 
 def quick_scale_target(tmp_path: Path) -> SlurmTarget:
-    """The real workflow at the quick scale, on a scratch copy of the repository's workflow."""
+    """The real workflow at the quick scale, on a scratch copy of the repository's workflow:
+    every landed study's summary table and figures must come back through SLURM."""
+    import yaml
+
     workdir = copy_workflow(tmp_path)
+    cfg = yaml.safe_load((workdir / "config" / "quick.yaml").read_text())
+    landed = [
+        s for s in cfg["studies"]
+        if "register_targets" in (workdir / "workflow" / "rules" / f"{s}.smk").read_text()
+    ]  # fmt: skip
+    root = workdir / "results" / "quick"
+    outputs = [root / s / "fits" / "summary.csv" for s in landed]
+    outputs += [root / s / "figures" for s in landed]
     return SlurmTarget(
         workdir=workdir,
         configfile=workdir / "config" / "quick.yaml",
-        expected_outputs=[workdir / "results" / "quick"],
-        timeout=900,
+        expected_outputs=outputs,
+        timeout=1200,
     )
 
 
 def slurm_target(tmp_path: Path) -> SlurmTarget:
-    """What test_workflow_runs_through_slurm runs (swap in quick_scale_target here)."""
-    return scratch_target(tmp_path)
+    """What test_workflow_runs_through_slurm runs: the quick scale of the real workflow."""
+    return quick_scale_target(tmp_path)
 
 
 def test_cluster_accepts_and_runs_a_batch_job(slurm_cluster, tmp_path):
