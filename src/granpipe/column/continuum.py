@@ -44,6 +44,14 @@ node y = 0, where the integrand jumps, so the rule stays second order). Density 
 Eq. (48). Material positions follow dX/dt = u(X, t) (Lagrangian tracers, clamped at the
 floor), to compare with the discrete particles.
 
+*A second regularization.* The term (1/6) e α A₊ h² y_zz y_tzz of Eq. (35) is a viscosity
+proportional to y_zz: negative wherever y_zz < 0, which makes the model ill-posed there
+too (growth ∝ |y_zz|, unbounded under refinement). By default we keep only its
+dissipative part, max(y_zz, 0) (option ``viscosity``); with the printed form the figure-1
+problem blows up at Δz = h/64. The time step follows the fastest rate of the linearized,
+regularized equation at every step, because Q (the y_zz coefficient) and the viscosity grow
+like 1/Δz² next to the velocity jumps of the floor (Eq. 3).
+
 *What Eq. (45) as printed implies.* The kernel is even in y and positive, so the integral
 is a downward body force independent of the compression: (K/m) h² Θ ≈ 5 g at z = b for
 the figure-1 parameters, on top of gravity. Nothing in (45) can hold a column up; the
@@ -354,7 +362,8 @@ def solve_longwave(
         ``"undeformed"`` (y(z, 0) = z, the paper's Eq. 39)
     record_dt : float [time], optional output interval (default: every 0.01 T, ≥ dt)
     viscosity : ``"dissipative"`` (default: y_zz⁺ in the y_zz y_tzz term) or
-        ``"as_printed"`` (blows up wherever y_zz < 0 makes the viscosity negative)
+        ``"as_printed"`` (the viscosity is negative wherever y_zz < 0; the figure-1 problem
+        then blows up under refinement, at Δz = h/64 after 0.21 s)
     forcing : callable (z, t) -> (J+1,) extra acceleration (manufactured-solution tests)
     exact : callable (z, t) -> (y, v), optional Dirichlet data at z = 0 and initial state
         (manufactured-solution tests)
@@ -405,6 +414,30 @@ def solve_longwave(
             yb, vb = exact(np.zeros(1), t)
             return float(yb[0]), float(vb[0]), None
         return floor_state(p, t, seg[3], seg[2])
+
+    def _max_rate(yy, vv):
+        # Bound of the fastest rate of the regularized Eq. (35) linearized about the current
+        # state: R = Q y_zz + ν y_tzz + β y_tz + ... with (1 + γh²k²) on the left gives
+        # ω ≤ sqrt(K|Q|/(mγ)), viscous rate ≤ ν/(γh²), first-order rate ≤ |β|/(2h√γ).
+        # Q and ν grow like 1/dz² where the floor's velocity jumps (Eq. 3), so the step
+        # follows them.
+        yz = np.gradient(yy, dz)
+        vz = np.gradient(vv, dz)
+        yzz = np.zeros_like(yy)
+        vzz = np.zeros_like(vv)
+        yzz[1:-1] = (yy[2:] - 2 * yy[1:-1] + yy[:-2]) / dz**2
+        vzz[1:-1] = (vv[2:] - 2 * vv[1:-1] + vv[:-2]) / dz**2
+        ea = p.e * co.alpha
+        Q = co.A_plus / 3 - p.h / 3 * (co.B * yz + ea * co.A_plus * vz)
+        Q = Q + p.h**2 * (
+            2 * p.r * co.alpha * yz**2 + ea * co.B * yz * vz + ea * co.A_plus / 6 * vzz
+        )
+        wave = math.sqrt(p.K * max(float(np.max(np.abs(Q))), co.C1) / (p.m * co.gamma))
+        nu = Kh2m * p.h**2 * ea * co.A_plus / 6 * float(np.max(np.abs(yzz)))
+        beta = Kh2m * float(
+            np.max(np.abs(yzz * (p.h / 3 * ea * co.A_plus - p.h**2 * ea * co.B * yz)))
+        )
+        return wave + nu / (co.gamma * p.h**2) + beta / (2 * p.h * math.sqrt(co.gamma))
 
     def top_state(t):
         return (
@@ -458,6 +491,8 @@ def solve_longwave(
         return vv, a, drho.copy()
 
     segs = _segments(p, t_end) if exact is None else [(0.0, t_end, False, 0.0)]
+    # a velocity 1000 times the wave speed is a numerical blow-up, not physics
+    v_blowup = 1e3 * (co.c + p.a * p.omega + float(np.max(np.abs(v))))
     i_rec = 0
     t = 0.0
     for seg in segs:
@@ -473,7 +508,7 @@ def solve_longwave(
             if i_rec < n_rec and out_t[i_rec] < stop:
                 stop = out_t[i_rec]
             while stop - t > 1e-9 * dt:
-                hs = min(dt, stop - t)
+                hs = min(dt, stop - t, cfl / _max_rate(y, v))
                 vmax = max(float(np.max(np.abs(v))), 1e-30)
                 hs = min(hs, 0.8 * dz / vmax)
                 k1 = deriv(t, y, v, rho, seg)
@@ -489,11 +524,11 @@ def solve_longwave(
                 rho = rho + hs / 6 * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2])
                 t += hs
                 set_ends(t, seg, y, v)
-                if not np.all(np.isfinite(y)):
+                if not np.all(np.isfinite(y)) or np.max(np.abs(v)) > v_blowup:
                     from ..errors import SimulationError
 
                     raise SimulationError(
-                        "column long-wave: non-finite solution", time=t, dz=dz, dt=dt
+                        "column long-wave: solution blew up", time=t, dz=dz, dt=dt
                     )
     return {
         "z": z,

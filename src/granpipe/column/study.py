@@ -1,0 +1,692 @@
+"""The column study, step by step (SPEC §2): what each workflow stage computes.
+
+1. Trajectories y_i(t) of the figure-1 columns over four taps (paper Fig. 1).
+2. Density relaxation: column height and mean linear density at 0.99T, 1.99T, … over
+   many taps, for an ensemble of starts perturbed inside the stick band (generic set).
+3. Chaos map: largest Lyapunov exponent over a grid of tap amplitude a and period T, from
+   the tangent dynamics with saltation, checked against twin trajectories and against the
+   plain variational solution (no saltation), each point an ensemble with a t-interval.
+4. Continuum models against the discrete column (paper Fig. 2), and their convergence.
+
+Every function returns an :class:`xarray.Dataset` whose variables carry ``units`` and
+``long_name``; the CLI writes them with provenance (granpipe.io).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+import xarray as xr
+from scipy import stats
+
+from ..errors import SimulationError
+from ..seeds import replica_rng, replica_seed
+from . import continuum as cont
+from . import discrete as d
+from .params import ColumnParams, equilibrium_positions
+
+__all__ = [
+    "physics",
+    "perturbed_start",
+    "trajectories",
+    "relaxation_batch",
+    "relaxation_ensemble",
+    "relaxation_fit",
+    "lyapunov_point",
+    "chaos_map",
+    "continuum_comparison",
+    "continuum_convergence",
+    "t_interval",
+    "STUDY",
+]
+
+STUDY = "column"
+
+
+def physics(mapping: Mapping) -> ColumnParams:
+    """ColumnParams from a config ``physics`` mapping (keys of ColumnParams.from_mapping)."""
+    return ColumnParams.from_mapping(mapping)
+
+
+def perturbed_start(p: ColumnParams, rng: np.random.Generator, fraction: float) -> d.ColumnState:
+    """Equilibrium start with every compression scaled by 1 + fraction·0.9·e·U(−1, 1).
+
+    The force each contact must carry is unchanged, so with ``fraction <= 1`` every contact
+    stays inside its hysteresis band [K(1−e)c, K(1+e)c]: the perturbed column is still
+    exactly at rest (a stuck state), a different one for each replica.
+    """
+    y = equilibrium_positions(p)
+    c = np.empty(p.N)
+    c[0] = p.r - y[0]
+    c[1:] = 2 * p.r - np.diff(y)
+    c = c * (1.0 + fraction * 0.9 * p.e * rng.uniform(-1.0, 1.0, p.N))
+    y = np.cumsum(np.concatenate([[p.r], np.full(p.N - 1, 2 * p.r)]) - c)
+    return d.ColumnState(y)
+
+
+def t_interval(x, confidence: float = 0.95):
+    """Mean and Student-t interval of the mean of the finite values of x; (mean, lo, hi, n)."""
+    x = np.asarray(x, dtype=np.float64)
+    x = x[np.isfinite(x)]
+    n = x.size
+    if n == 0:
+        return np.nan, np.nan, np.nan, 0
+    m = float(x.mean())
+    if n < 2:
+        return m, np.nan, np.nan, n
+    half = stats.t.ppf(0.5 + confidence / 2, n - 1) * x.std(ddof=1) / math.sqrt(n)
+    return m, m - half, m + half, n
+
+
+# --------------------------------------------------------------------------- 1. Fig. 1
+def trajectories(phys: Mapping, n_taps: int, record_dt: float, step_factor: float = 0.1):
+    """y_i(t) of one column from the equilibrium start over ``n_taps`` taps (Fig. 1).
+
+    Returns a Dataset with ``y`` (time, particle) [length], ``v`` [length/time],
+    ``floor`` (time,) [length], ``height`` (time,) [length] = y_N + r − y0.
+    """
+    p = physics(phys)
+    s = d.initial_state(p)
+    out = d.simulate(
+        p, s, n_taps, h=d.default_step(p, step_factor), record_dt=record_dt, sample_fracs=()
+    )
+    floor = cont.floor_position(p, out["t"])
+    ds = xr.Dataset(
+        {
+            "y": (
+                ("time", "particle"),
+                out["y"],
+                {"units": "length", "long_name": "particle height y_i"},
+            ),
+            "v": (
+                ("time", "particle"),
+                out["v"],
+                {"units": "length/time", "long_name": "particle velocity"},
+            ),
+            "floor": ("time", floor, {"units": "length", "long_name": "floor height y0 (Eq. 2)"}),
+            "height": (
+                "time",
+                out["y"][:, -1] + p.r - floor,
+                {"units": "length", "long_name": "column height y_N + r - y0"},
+            ),
+        },
+        coords={
+            "time": ("time", out["t"], {"units": "time", "long_name": "time"}),
+            "particle": (
+                "particle",
+                np.arange(1, p.N + 1),
+                {"units": "1", "long_name": "particle index i"},
+            ),
+        },
+        attrs={"stats": str(out["stats"]), "N": p.N, "T": p.T, "tap_duration": p.tap_duration},
+    )
+    return ds
+
+
+# --------------------------------------------------------------------------- 2. relaxation
+def relaxation_batch(
+    phys: Mapping,
+    replicas: Iterable[int],
+    n_taps: int,
+    perturbation: float,
+    step_factor: float = 0.1,
+    sample_frac: float = 0.99,
+):
+    """Column height and mean linear density at (k + 0.99)T for replicas of perturbed starts.
+
+    Returns (replica, tap) ``height`` [length] = y_N + r (floor at rest at 0.99T) and
+    ``density`` [mass/length] = N m / height, plus the rest values at tap 0.
+    """
+    p = physics(phys)
+    replicas = list(replicas)
+    H = np.full((len(replicas), n_taps + 1), np.nan)
+    seeds = []
+    for k, rep in enumerate(replicas):
+        rng = replica_rng(STUDY, dict(phys), rep)
+        seeds.append(replica_seed(STUDY, dict(phys), rep))
+        s = perturbed_start(p, rng, perturbation)
+        H[k, 0] = s.y[-1] + p.r
+        try:
+            out = d.simulate(
+                p, s, n_taps, h=d.default_step(p, step_factor), sample_fracs=(sample_frac,)
+            )
+        except SimulationError as exc:
+            raise exc.with_context(
+                study=STUDY, stage="relaxation", replica=rep, seed=seeds[-1]
+            ) from None
+        H[k, 1:] = out["samples"][:, 0, -1] + p.r
+    ds = xr.Dataset(
+        {
+            "height": (
+                ("replica", "tap"),
+                H,
+                {"units": "length", "long_name": "column height y_N + r at (k + 0.99) T"},
+            ),
+            "density": (
+                ("replica", "tap"),
+                p.N * p.m / H,
+                {"units": "mass/length", "long_name": "mean linear density N m / height"},
+            ),
+        },
+        coords={
+            "replica": (
+                "replica",
+                np.array(replicas),
+                {"units": "1", "long_name": "replica index"},
+            ),
+            "tap": (
+                "tap",
+                np.arange(n_taps + 1),
+                {"units": "1", "long_name": "taps completed (0 = start)"},
+            ),
+        },
+        attrs={"sample_frac": sample_frac, "close_packed_density": p.m / (2 * p.r)},
+    )
+    return ds, seeds
+
+
+def relaxation_ensemble(batches: Iterable[xr.Dataset]):
+    """Mean, standard deviation (spread), standard error and count per tap over replicas."""
+    ds = xr.concat(list(batches), dim="replica")
+    out = {}
+    for name, unit in (("density", "mass/length"), ("height", "length")):
+        x = ds[name]
+        n = np.isfinite(x).sum("replica")
+        out[f"{name}_mean"] = (
+            ("tap",),
+            x.mean("replica").values,
+            {"units": unit, "long_name": f"ensemble mean {name}"},
+        )
+        out[f"{name}_std"] = (
+            ("tap",),
+            x.std("replica", ddof=1).values,
+            {"units": unit, "long_name": f"replica spread (standard deviation) of {name}"},
+        )
+        out[f"{name}_sem"] = (
+            ("tap",),
+            (x.std("replica", ddof=1) / np.sqrt(n)).values,
+            {"units": unit, "long_name": f"standard error of the mean {name}"},
+        )
+    out["count"] = (
+        ("tap",),
+        np.isfinite(ds["density"]).sum("replica").values.astype(np.int64),
+        {"units": "1", "long_name": "replicas"},
+    )
+    res = xr.Dataset(out, coords={"tap": ds["tap"]}, attrs=dict(ds.attrs))
+    res["density_replicas"] = ds["density"]
+    return res
+
+
+def relaxation_fit(ens: xr.Dataset, n_boot: int = 1000, seed: int = 0):
+    """Fit ρ(n) = ρ∞ − Δρ exp(−n/τ) to the ensemble mean density; bootstrap over replicas.
+
+    Returns a dict quantity -> (value, unit, fit_error, ci_low, ci_high, n).
+    """
+    from scipy.optimize import curve_fit
+
+    rep = ens["density_replicas"].values
+    taps = ens["tap"].values.astype(float)
+
+    def model(n, rinf, drho, tau):
+        return rinf - drho * np.exp(-n / tau)
+
+    def fit(y):
+        p0 = (y[-max(3, y.size // 4) :].mean(), y[-1] - y[0], max(1.0, taps[-1] / 5))
+        try:
+            popt, pcov = curve_fit(
+                model,
+                taps,
+                y,
+                p0=p0,
+                maxfev=20000,
+                bounds=([0, -np.inf, 1e-3], [np.inf, np.inf, 1e6]),
+            )
+        except (RuntimeError, ValueError):
+            return np.full(3, np.nan), np.full(3, np.nan)
+        return popt, np.sqrt(np.diag(pcov))
+
+    mean = np.nanmean(rep, axis=0)
+    popt, perr = fit(mean)
+    rng = np.random.default_rng(seed)
+    boots = []
+    n = rep.shape[0]
+    for _ in range(n_boot if n > 1 else 0):
+        idx = rng.integers(0, n, n)
+        boots.append(fit(np.nanmean(rep[idx], axis=0))[0])
+    boots = np.array(boots) if boots else np.full((1, 3), np.nan)
+    lo, hi = np.nanpercentile(boots, [2.5, 97.5], axis=0) if n > 1 else (np.full(3, np.nan),) * 2
+    late = rep[:, taps >= taps[-1] / 2].mean(axis=1)
+    m, l2, h2, nn = t_interval(late)
+    unit = "mass/length"
+    return {
+        "relaxed_density": (popt[0], unit, perr[0], lo[0], hi[0], n),
+        "relaxation_taps": (popt[2], "taps", perr[2], lo[2], hi[2], n),
+        "density_change": (popt[1], unit, perr[1], lo[1], hi[1], n),
+        "late_mean_density": (m, unit, np.nan, l2, h2, nn),
+    }
+
+
+# --------------------------------------------------------------------------- 3. chaos map
+def _twin_lyapunov(p, base: d.ColumnState, twin_dir, n_taps, eps, h):
+    """Benettin twin estimate: per-tap log growth of a twin at distance ε, renormalized."""
+    sy, sv = d.tangent_scales(p)
+    tw = base.copy()
+    tw.y = base.y + eps * sy * twin_dir[: p.N]
+    tw.v = base.v + eps * sv * twin_dir[p.N :]
+    logs = np.full(n_taps, np.nan)
+    for k in range(n_taps):
+        d.simulate(p, base, 1, h=h, sample_fracs=())
+        d.simulate(p, tw, 1, h=h, sample_fracs=())
+        dist = math.sqrt(float(np.sum(((tw.y - base.y) / sy) ** 2 + ((tw.v - base.v) / sv) ** 2)))
+        logs[k] = math.log(dist / eps)
+        tw.y = base.y + (tw.y - base.y) * (eps / dist)
+        tw.v = base.v + (tw.v - base.v) * (eps / dist)
+        tw.modes = base.modes.copy()
+        tw.period = base.period
+    return logs
+
+
+def lyapunov_point(
+    phys: Mapping,
+    replicas: Iterable[int],
+    n_transient: int,
+    n_taps: int,
+    perturbation: float,
+    twin_epsilon: float,
+    plain: bool = True,
+    step_factor: float = 0.1,
+):
+    """Largest Lyapunov exponent at one (a, T): per replica, three estimates.
+
+    ``lambda_tap`` from the tangent dynamics with saltation (the estimate of the map),
+    ``lambda_twin`` from twin trajectories (ε = ``twin_epsilon`` in the scaled norm), and
+    ``lambda_plain`` from the variational equations without saltation. Exponents are per
+    tap [1/tap]; divide by T for per unit time. A replica whose column breaks (the floor
+    passes through a particle: the contact law is too soft for the tap) gives NaN and is
+    counted in ``failed``.
+    """
+    p = physics(phys)
+    h = d.default_step(p, step_factor)
+    replicas = list(replicas)
+    lam = np.full(len(replicas), np.nan)
+    twin = np.full(len(replicas), np.nan)
+    plain_l = np.full(len(replicas), np.nan)
+    growth = np.full((len(replicas), n_taps), np.nan)
+    failed = np.zeros(len(replicas), dtype=np.int64)
+    seeds = []
+    for k, rep in enumerate(replicas):
+        rng = replica_rng(STUDY, dict(phys), rep)
+        seeds.append(replica_seed(STUDY, dict(phys), rep))
+        try:
+            s = perturbed_start(p, rng, perturbation)
+            d.simulate(p, s, n_transient, h=h, sample_fracs=())
+            start = s.copy()
+            u = rng.standard_normal(2 * p.N)
+            u /= np.linalg.norm(u)
+            sy, sv = d.tangent_scales(p)
+            s.dy, s.dv = u[: p.N] * sy, u[p.N :] * sv
+            out = d.simulate(p, s, n_taps, h=h, tangent=True, sample_fracs=())
+            growth[k] = out["log_growth"]
+            lam[k] = float(np.mean(out["log_growth"]))
+            twin[k] = float(np.mean(_twin_lyapunov(p, start.copy(), u, n_taps, twin_epsilon, h)))
+            if plain:
+                s2 = start.copy()
+                s2.dy, s2.dv = u[: p.N] * sy, u[p.N :] * sv
+                out2 = d.simulate(
+                    p, s2, n_taps, h=h, tangent=True, saltation=False, sample_fracs=()
+                )
+                plain_l[k] = float(np.mean(out2["log_growth"]))
+        except SimulationError:
+            failed[k] = 1
+    ds = xr.Dataset(
+        {
+            "lambda_tap": (
+                "replica",
+                lam,
+                {
+                    "units": "1/tap",
+                    "long_name": "largest Lyapunov exponent, tangent with saltation",
+                },
+            ),
+            "lambda_twin": (
+                "replica",
+                twin,
+                {"units": "1/tap", "long_name": "largest Lyapunov exponent, twin trajectories"},
+            ),
+            "lambda_plain": (
+                "replica",
+                plain_l,
+                {
+                    "units": "1/tap",
+                    "long_name": "largest Lyapunov exponent, variational without saltation",
+                },
+            ),
+            "log_growth": (
+                ("replica", "tap"),
+                growth,
+                {"units": "1", "long_name": "log growth of the tangent vector per tap"},
+            ),
+            "failed": (
+                "replica",
+                failed,
+                {"units": "1", "long_name": "1 if the column broke (particle passed through)"},
+            ),
+        },
+        coords={
+            "replica": (
+                "replica",
+                np.array(replicas),
+                {"units": "1", "long_name": "replica index"},
+            ),
+            "tap": ("tap", np.arange(n_taps), {"units": "1", "long_name": "measured tap"}),
+        },
+        attrs={"a": p.a, "T": p.T, "N": p.N, "twin_epsilon": twin_epsilon},
+    )
+    return ds, seeds
+
+
+def chaos_map(points: Iterable[xr.Dataset], confidence: float = 0.95):
+    """Reduce per-point datasets to the (a, T) map: mean exponents with t-intervals.
+
+    ``chaotic`` is 1 where the lower end of the interval of λ (per tap, with saltation) is
+    above zero, 0 where the upper end is below zero, and −1 (undecided) otherwise.
+    """
+    pts = list(points)
+    A = np.array(sorted({float(ds.attrs["a"]) for ds in pts}))
+    T = np.array(sorted({float(ds.attrs["T"]) for ds in pts}))
+    shape = (A.size, T.size)
+    fields = {
+        k: np.full(shape, np.nan)
+        for k in (
+            "lambda_mean",
+            "lambda_low",
+            "lambda_high",
+            "twin_mean",
+            "twin_low",
+            "twin_high",
+            "plain_mean",
+            "plain_low",
+            "plain_high",
+            "lambda_time",
+        )
+    }
+    n = np.zeros(shape, dtype=np.int64)
+    failed = np.zeros(shape, dtype=np.int64)
+    chaotic = np.full(shape, -1, dtype=np.int64)
+    for ds in pts:
+        i = int(np.searchsorted(A, float(ds.attrs["a"])))
+        j = int(np.searchsorted(T, float(ds.attrs["T"])))
+        m, lo, hi, nn = t_interval(ds["lambda_tap"].values, confidence)
+        fields["lambda_mean"][i, j], fields["lambda_low"][i, j], fields["lambda_high"][i, j] = (
+            m,
+            lo,
+            hi,
+        )
+        fields["lambda_time"][i, j] = m / T[j]
+        n[i, j] = nn
+        failed[i, j] = int(ds["failed"].sum())
+        for key, var in (("twin", "lambda_twin"), ("plain", "lambda_plain")):
+            m2, lo2, hi2, _ = t_interval(ds[var].values, confidence)
+            fields[f"{key}_mean"][i, j], fields[f"{key}_low"][i, j], fields[f"{key}_high"][i, j] = (
+                m2,
+                lo2,
+                hi2,
+            )
+        if np.isfinite(lo) and lo > 0:
+            chaotic[i, j] = 1
+        elif np.isfinite(hi) and hi < 0:
+            chaotic[i, j] = 0
+    names = {
+        "lambda_mean": ("1/tap", "mean largest Lyapunov exponent (tangent with saltation)"),
+        "lambda_low": ("1/tap", f"lower end of the {confidence:.0%} t-interval"),
+        "lambda_high": ("1/tap", f"upper end of the {confidence:.0%} t-interval"),
+        "lambda_time": ("1/time", "mean largest Lyapunov exponent per unit time"),
+        "twin_mean": ("1/tap", "mean exponent from twin trajectories"),
+        "twin_low": ("1/tap", "twin estimate, lower end of the interval"),
+        "twin_high": ("1/tap", "twin estimate, upper end of the interval"),
+        "plain_mean": ("1/tap", "mean exponent from the variational equations without saltation"),
+        "plain_low": ("1/tap", "plain variational estimate, lower end"),
+        "plain_high": ("1/tap", "plain variational estimate, upper end"),
+    }
+    data = {
+        k: (("a", "T"), v, {"units": names[k][0], "long_name": names[k][1]})
+        for k, v in fields.items()
+    }
+    data["n"] = (("a", "T"), n, {"units": "1", "long_name": "replicas with a finite estimate"})
+    data["failed"] = (
+        ("a", "T"),
+        failed,
+        {"units": "1", "long_name": "replicas whose column broke"},
+    )
+    data["chaotic"] = (
+        ("a", "T"),
+        chaotic,
+        {"units": "1", "long_name": "1 chaotic, 0 regular, -1 undecided (interval contains 0)"},
+    )
+    return xr.Dataset(
+        data,
+        coords={
+            "a": ("a", A, {"units": "length", "long_name": "tap amplitude a"}),
+            "T": ("T", T, {"units": "time", "long_name": "tap period T"}),
+        },
+        attrs={"confidence": confidence},
+    )
+
+
+# --------------------------------------------------------------------------- 4. continuum
+def _discrete_record(p, n_taps, record_dt, step_factor):
+    s = d.initial_state(p)
+    return d.simulate(
+        p, s, n_taps, h=d.default_step(p, step_factor), record_dt=record_dt, sample_fracs=()
+    )
+
+
+def _distance(model_y, disc_y, r):
+    """RMS over records and particles of absolute positions and of displacements from rest."""
+    ok = np.all(np.isfinite(model_y), axis=1)
+    a = model_y[ok] - disc_y[ok]
+    disp = (model_y[ok] - model_y[0]) - (disc_y[ok] - disc_y[0])
+    return float(np.sqrt(np.mean(a * a))), float(np.sqrt(np.mean(disp * disp)))
+
+
+def continuum_comparison(
+    phys: Mapping,
+    n_taps: int,
+    lw_dz: float,
+    bsr_dz: float,
+    record_dt: float,
+    viscosity: str = "dissipative",
+    step_factor: float = 0.1,
+):
+    """Discrete column, L-W and BSR solutions over ``n_taps`` taps, on common records (Fig. 2).
+
+    Returns (dataset, distances). The continuum positions of particle i are y(z_i, t) at
+    the label z_i = (2i − 1) r (L-W) and the tracer started at the discrete y_i(0) (BSR).
+    Distances: RMS of absolute positions and of displacements from each model's own rest
+    state, over records and particles [length].
+    """
+    p = physics(phys)
+    fine = min(record_dt, 1e-3)
+    disc = _discrete_record(p, n_taps, fine, step_factor)
+    top = (disc["t"], disc["y"][:, -1] + p.r, disc["v"][:, -1])
+    t_end = n_taps * p.T
+    lw = cont.solve_longwave(p, t_end, dz=lw_dz, top=top, record_dt=record_dt, viscosity=viscosity)
+    bsr = cont.solve_bsr(p, t_end, dz=bsr_dz, top=top, record_dt=record_dt)
+    t = lw["t"]
+    n = min(t.size, bsr["t"].size)
+    t = t[:n]
+    idx = np.clip(np.round(t / fine).astype(int), 0, disc["t"].size - 1)
+    yd = disc["y"][idx]
+    zi = (2 * np.arange(1, p.N + 1) - 1) * p.r
+    ylw = np.array([np.interp(zi, lw["z"], row) for row in lw["y"][:n]])
+    ybsr = bsr["tracers"][:n]
+    dist = {}
+    for name, ym in (("longwave", ylw), ("bsr", ybsr)):
+        rms_abs, rms_disp = _distance(ym, yd, p.r)
+        dist[name] = {"rms_abs": rms_abs, "rms_disp": rms_disp}
+    dist["bsr"]["collapse_time"] = float(bsr["collapse_time"])
+    lab = {"units": "length"}
+    ds = xr.Dataset(
+        {
+            "y_discrete": (
+                ("time", "particle"),
+                yd,
+                {**lab, "long_name": "discrete particle height y_i"},
+            ),
+            "y_longwave_particles": (
+                ("time", "particle"),
+                ylw,
+                {**lab, "long_name": "L-W y(z_i, t) at particle labels"},
+            ),
+            "y_bsr_particles": (
+                ("time", "particle"),
+                ybsr,
+                {**lab, "long_name": "BSR tracer heights started at y_i(0)"},
+            ),
+            "y_longwave": (
+                ("time", "label"),
+                lw["y"][:n],
+                {**lab, "long_name": "L-W height y(z, t) of label z"},
+            ),
+            "rho_longwave": (
+                ("time", "cell"),
+                lw["rho"][:n],
+                {"units": "mass/length", "long_name": "L-W density from Eq. (41)"},
+            ),
+            "u_bsr": (
+                ("time", "height"),
+                bsr["u"][:n],
+                {"units": "length/time", "long_name": "BSR velocity u(z, t) (NaN after collapse)"},
+            ),
+            "rho_bsr": (
+                ("time", "height"),
+                bsr["rho"][:n],
+                {
+                    "units": "mass/length",
+                    "long_name": "BSR density from Eq. (48) (NaN after collapse)",
+                },
+            ),
+            "floor": ("time", cont.floor_position(p, t), {**lab, "long_name": "floor height y0"}),
+        },
+        coords={
+            "time": ("time", t, {"units": "time", "long_name": "time"}),
+            "particle": (
+                "particle",
+                np.arange(1, p.N + 1),
+                {"units": "1", "long_name": "particle index"},
+            ),
+            "label": (
+                "label",
+                lw["z"],
+                {**lab, "long_name": "Lagrangian label z of the L-W column"},
+            ),
+            "cell": ("cell", lw["z_cell"], {**lab, "long_name": "L-W cell centre label"}),
+            "height": (
+                "height",
+                bsr["z"],
+                {**lab, "long_name": "BSR Eulerian height (cell centre)"},
+            ),
+        },
+        attrs={
+            "rms_abs_longwave": dist["longwave"]["rms_abs"],
+            "rms_disp_longwave": dist["longwave"]["rms_disp"],
+            "rms_abs_bsr": dist["bsr"]["rms_abs"],
+            "rms_disp_bsr": dist["bsr"]["rms_disp"],
+            "bsr_collapse_time": dist["bsr"]["collapse_time"],
+            "lw_dz": lw_dz,
+            "bsr_dz": bsr_dz,
+            "lw_dt": float(lw["dt"]),
+            "lw_C1": lw["coeffs"].C1,
+            "lw_gamma": lw["coeffs"].gamma,
+            "lw_wave_speed": lw["coeffs"].c,
+            "viscosity": viscosity,
+            "r": p.r,
+        },
+    )
+    return ds, dist
+
+
+def continuum_convergence(
+    phys: Mapping,
+    t_end: float,
+    refinements: Iterable[int],
+    bsr_refinements: Iterable[int],
+    bsr_t_end: float,
+    viscosity: str = "dissipative",
+    step_factor: float = 0.1,
+):
+    """Self-convergence of both solvers on the Fig. 2 problem under grid refinement.
+
+    L-W: Δz = h/k for k in ``refinements``; e_k = max over records and coarsest nodes of
+    |y(h/k) − y(h/2k)|. BSR: e_k = max over records of |X(h/k) − X(h/2k)| of the particle
+    tracers (until ``bsr_t_end``). Observed order log2(e_k / e_2k).
+    """
+    p = physics(phys)
+    disc = _discrete_record(p, max(1, math.ceil(t_end / p.T)), 1e-3, step_factor)
+    top = (disc["t"], disc["y"][:, -1] + p.r, disc["v"][:, -1])
+    rec = 0.01 * p.T
+    ks = sorted(int(k) for k in refinements)
+    sols = {
+        k: cont.solve_longwave(p, t_end, dz=p.h / k, top=top, record_dt=rec, viscosity=viscosity)
+        for k in ks
+    }
+    coarse = sols[ks[0]]["z"]
+
+    def on_coarse(sol):
+        return np.array([np.interp(coarse, sol["z"], row) for row in sol["y"]])
+
+    lw_err = [
+        float(np.max(np.abs(on_coarse(sols[a]) - on_coarse(sols[b]))))
+        for a, b in zip(ks[:-1], ks[1:], strict=True)
+    ]
+    bks = sorted(int(k) for k in bsr_refinements)
+    bsols = {k: cont.solve_bsr(p, bsr_t_end, dz=p.h / k, top=top, record_dt=rec / 10) for k in bks}
+    bsr_err = [
+        float(np.nanmax(np.abs(bsols[a]["tracers"] - bsols[b]["tracers"])))
+        for a, b in zip(bks[:-1], bks[1:], strict=True)
+    ]
+
+    def orders(err, ks_):
+        # successive differences e_k = |u_k − u_2k| fall like dz^p: p = log2(e_k / e_2k)
+        e = np.asarray(err)
+        ratio = np.array(ks_[1 : len(e)]) / np.array(ks_[: len(e) - 1])
+        return np.log(e[:-1] / e[1:]) / np.log(ratio)
+
+    ds = xr.Dataset(
+        {
+            "lw_error": (
+                "lw_refinement",
+                np.array(lw_err),
+                {"units": "length", "long_name": "L-W max |y - y_finest|"},
+            ),
+            "bsr_error": (
+                "bsr_refinement",
+                np.array(bsr_err),
+                {"units": "length", "long_name": "BSR max |X - X_finest| of tracers"},
+            ),
+        },
+        coords={
+            "lw_refinement": (
+                "lw_refinement",
+                np.array(ks[:-1]),
+                {"units": "1", "long_name": "h / dz (L-W)"},
+            ),
+            "bsr_refinement": (
+                "bsr_refinement",
+                np.array(bks[:-1]),
+                {"units": "1", "long_name": "h / dz (BSR)"},
+            ),
+        },
+        attrs={
+            "lw_finest": ks[-1],
+            "bsr_finest": bks[-1],
+            "h": p.h,
+            "t_end": t_end,
+            "bsr_t_end": bsr_t_end,
+            "lw_orders": " ".join(f"{o:.3f}" for o in orders(lw_err, ks)),
+            "bsr_orders": " ".join(f"{o:.3f}" for o in orders(bsr_err, bks)),
+        },
+    )
+    return ds
