@@ -141,6 +141,32 @@ def test_quick_scale_produced_every_target(quick):
         assert list((root / "figures").glob("fig*.pdf"))
 
 
+def test_status_counts_present_and_missing_batches(quick):
+    workdir, base = quick
+    granpipe = str(Path(SNAKEMAKE).with_name("granpipe"))
+
+    def status():
+        proc = subprocess.run(
+            [granpipe, "status", "--results", "results", "--configfile", "config/scratch.yaml"],
+            cwd=workdir, capture_output=True, text=True, check=True,
+        )  # fmt: skip
+        return proc.stdout
+
+    text = status()
+    for study in studies(base):
+        n = len(list((workdir / "results" / "quick" / study).glob(KNOBS[study].batch_glob)))
+        assert f"{study}: {n} run file(s) of {n} expected, 0 missing" in text, text
+        assert "quantity" not in text and " = " in text  # fitted numbers are listed
+    study = studies(base)[0]
+    victim = sorted((workdir / "results" / "quick" / study).glob(KNOBS[study].batch_glob))[0]
+    aside = victim.with_name("aside.tmp")
+    victim.rename(aside)  # a rename keeps the mtime, so later plans are unchanged
+    try:
+        assert "1 missing" in status()
+    finally:
+        aside.rename(victim)
+
+
 def test_fit_edit_plans_only_fits_and_figures(quick):
     workdir, base = quick
     for study in studies(base):
@@ -268,9 +294,10 @@ def test_second_workflow_on_same_directory_is_refused(quick):
     while time.monotonic() < deadline and not list(locks.glob("*.lock")):
         time.sleep(0.05)
     assert list(locks.glob("*.lock")), "the first run never took its lock"
+    # A second run that would write the same batch: its output is locked by the first.
     second = run_snakemake(
-        "--cores", "1", "--configfile", "config/scratch.yaml", "--forcerun", knobs.figure_rule,
-        cwd=workdir, check=False,
+        "--cores", "1", "--configfile", "config/scratch.yaml", "--forcerun", sim_rule,
+        "--allowed-rules", sim_rule, "--", rel, cwd=workdir, check=False,
     )  # fmt: skip
     out, _ = first.communicate(timeout=900)
     assert second.returncode != 0

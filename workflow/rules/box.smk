@@ -111,7 +111,13 @@ if "box" in config:
         input:
             BOX_ENSEMBLE_FILES,
         output:
-            [out("box", f) for f in box_layout.fit_files()],
+            *[out("box", f) for f in box_layout.fit_files() if not f.endswith(".csv")],
+            summary=report(
+                out("box", "fits", "summary.csv"),
+                category="box",
+                subcategory="summary",
+                caption="../report/box_summary.rst",
+            ),
         params:
             json=lambda w: as_json(box_layout.fits_params(BOX)),
             outdir=lambda w: out("box", "fits"),

@@ -95,7 +95,12 @@ rule drum_fits:
         runs=DRUM_RUNS,
     output:
         fits=out("drum", drum_layout.fits_file(DRUM)),
-        summary=out("drum", drum_layout.summary_file()),
+        summary=report(
+            out("drum", drum_layout.summary_file()),
+            category="drum",
+            subcategory="summary",
+            caption="../report/drum_summary.rst",
+        ),
     params:
         json=lambda w: as_json(DRUM_FITS),
     conda:
