@@ -1,0 +1,437 @@
+"""``granpipe column <stage>``: the column study's workflow stages (DESIGN.md).
+
+Stage map (outputs under ``results/<scale>/column/``):
+
+* runs:     ``trajectories`` (Fig. 1 columns), ``relaxation`` (one batch of replicas),
+            ``chaos`` (one (a, T) point of the map), ``continuum`` (discrete vs L-W vs BSR),
+            ``convergence`` (continuum solvers under refinement)
+* ensemble: ``ensemble --kind relaxation|chaos`` (batches → means, spreads, intervals)
+* fits:     ``fits`` (relaxation fit, chaos thresholds, continuum distances → summary.csv,
+            fits netCDF and the Theorem 1 note)
+* figures:  ``figures`` (fig1–fig6, PNG and PDF)
+
+The column has no separate init stage: its start is the closed-form equilibrium (Eq. 27),
+perturbed per replica inside the runs.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import click
+
+from ..cli import params_option
+
+cli = click.Group("column", help="Tapped column of particles (SPEC §2): stages of the study.")
+
+
+def _log(msg):
+    click.echo(f"[column {time.strftime('%H:%M:%S')}] {msg}", err=True)
+    sys.stderr.flush()
+
+
+def _write(ds, out, params, seeds=None, **attrs):
+    from ..io import write_dataset
+
+    write_dataset(ds, out, config_subset=params, seeds=seeds, study="column", **attrs)
+    _log(f"wrote {out}")
+
+
+@cli.command("trajectories")
+@params_option
+@click.option("--set", "set_name", required=True, help="Name of the column in params['sets'].")
+@click.option("--out", required=True, type=click.Path(dir_okay=False))
+def trajectories_cmd(params, set_name, out):
+    """Fig. 1: y_i(t) of one column over the configured taps from the equilibrium start."""
+    from .study import trajectories
+
+    t0 = time.time()
+    ds = trajectories(
+        params["sets"][set_name],
+        int(params["n_taps"]),
+        float(params["record_dt"]),
+        float(params["step_factor"]),
+    )
+    ds.attrs["set"] = set_name
+    _write(ds, out, params, stage="runs", wall_time_s=time.time() - t0)
+
+
+@cli.command("relaxation")
+@params_option
+@click.option("--batch", required=True, type=int, help="Batch index (fixed replica range).")
+@click.option("--out", required=True, type=click.Path(dir_okay=False))
+def relaxation_cmd(params, batch, out):
+    """Density relaxation: one batch of perturbed starts over many taps."""
+    from ..seeds import batch_replicas
+    from .study import relaxation_batch
+
+    t0 = time.time()
+    # a batch is always full, so that n_replicas only adds batches (DESIGN, "Seeds")
+    reps = list(batch_replicas(batch, int(params["batch_size"])))
+    _log(f"relaxation batch {batch}: replicas {reps}, {params['n_taps']} taps")
+    ds, seeds = relaxation_batch(
+        params["physics"],
+        reps,
+        int(params["n_taps"]),
+        float(params["perturbation"]),
+        float(params["step_factor"]),
+    )
+    _write(ds, out, params, seeds=seeds, stage="runs", batch=batch, wall_time_s=time.time() - t0)
+
+
+@cli.command("chaos")
+@params_option
+@click.option("--a", "amplitude", required=True, type=float, help="Tap amplitude a.")
+@click.option("--T", "period", required=True, type=float, help="Tap period T.")
+@click.option("--out", required=True, type=click.Path(dir_okay=False))
+def chaos_cmd(params, amplitude, period, out):
+    """One point of the chaos map: ensemble of largest Lyapunov exponents at (a, T)."""
+    from .study import lyapunov_point
+
+    t0 = time.time()
+    phys = {**params["physics"], "a": amplitude, "T": period}
+    ds, seeds = lyapunov_point(
+        phys,
+        range(int(params["n_replicas"])),
+        int(params["transient_taps"]),
+        int(params["taps"]),
+        float(params["perturbation"]),
+        float(params["twin_epsilon"]),
+        bool(params["plain"]),
+        float(params["step_factor"]),
+    )
+    _log(
+        f"a={amplitude:g} T={period:g}: lambda/tap = {ds['lambda_tap'].values.round(3).tolist()}"
+        f" twin {ds['lambda_twin'].values.round(3).tolist()}"
+    )
+    _write(
+        ds,
+        out,
+        {**params, "physics": phys},
+        seeds=seeds,
+        stage="runs",
+        wall_time_s=time.time() - t0,
+    )
+
+
+@cli.command("continuum")
+@params_option
+@click.option("--out", required=True, type=click.Path(dir_okay=False))
+def continuum_cmd(params, out):
+    """Fig. 2 data: discrete column, L-W and BSR solutions and their distances."""
+    from .study import continuum_comparison
+
+    t0 = time.time()
+    ds, dist = continuum_comparison(
+        params["physics"],
+        int(params["n_taps"]),
+        float(params["lw_dz"]),
+        float(params["bsr_dz"]),
+        float(params["record_dt"]),
+        params["viscosity"],
+        float(params["step_factor"]),
+    )
+    _log(f"distances to the discrete column: {json.dumps(dist)}")
+    _write(ds, out, params, stage="runs", wall_time_s=time.time() - t0)
+
+
+@cli.command("convergence")
+@params_option
+@click.option("--out", required=True, type=click.Path(dir_okay=False))
+def convergence_cmd(params, out):
+    """Both continuum solvers under grid refinement on the Fig. 2 problem."""
+    from .study import continuum_convergence
+
+    t0 = time.time()
+    c = params["convergence"]
+    ds = continuum_convergence(
+        params["physics"],
+        float(c["t_end"]),
+        c["lw_refinements"],
+        c["bsr_refinements"],
+        float(c["bsr_t_end"]),
+        params["viscosity"],
+        float(params["step_factor"]),
+    )
+    _log(f"observed orders: L-W {ds.attrs['lw_orders']}, BSR {ds.attrs['bsr_orders']}")
+    _write(ds, out, params, stage="runs", wall_time_s=time.time() - t0)
+
+
+@cli.command("ensemble")
+@params_option
+@click.option("--kind", required=True, type=click.Choice(["relaxation", "chaos"]))
+@click.option("--out", required=True, type=click.Path(dir_okay=False))
+@click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=True))
+def ensemble_cmd(params, kind, out, inputs):
+    """Reduce run files: relaxation batches → per-tap statistics; chaos points → the map."""
+    from ..io import read_dataset
+    from .study import chaos_map, relaxation_ensemble
+
+    datasets = [read_dataset(p) for p in inputs]
+    if kind == "relaxation":
+        ds = relaxation_ensemble(datasets)
+    else:
+        ds = chaos_map(datasets, float(params.get("confidence", 0.95)))
+    _write(ds, out, params, stage="ensemble", kind=kind)
+
+
+def _theorem1_note(cmap, dist, conv, units):
+    """Plain-text reading of the chaos map against Theorem 1, and the continuum distances."""
+    import numpy as np
+
+    A, T = cmap["a"].values, cmap["T"].values
+    ch = cmap["chaotic"].values
+    lines = ["# Column study: what the numbers say", ""]
+    lines.append("## Theorem 1 (chaos for large tap amplitude a; chaos for small period T)")
+    lines.append("")
+    per_T = []
+    monotone = True
+    for j, t in enumerate(T):
+        idx = np.where(ch[:, j] == 1)[0]
+        if idx.size:
+            amin = A[idx[0]]
+            if not np.all(ch[idx[0] :, j] == 1):
+                monotone = False
+            per_T.append(f"T = {t:g} {units['time']}: chaotic from a = {amin:g} {units['length']}")
+        else:
+            per_T.append(f"T = {t:g} {units['time']}: no chaotic amplitude in the grid")
+            monotone = False
+    regular = int(np.sum(ch == 0))
+    chaotic = int(np.sum(ch == 1))
+    undecided = int(np.sum(ch == -1))
+    lines.append(
+        f"Grid: {A.size} amplitudes x {T.size} periods; {chaotic} chaotic, {regular} "
+        f"regular, {undecided} undecided points ({cmap.attrs.get('confidence', 0.95):.0%}"
+        " t-interval of the ensemble mean of the largest exponent, tangent with saltation)."
+    )
+    lines.extend(f"- {s}" for s in per_T)
+    top_chaotic = int(np.sum(ch[-1, :] == 1))
+    bottom_regular = int(np.sum(ch[0, :] == 0))
+    lines.append("")
+    if top_chaotic == T.size and bottom_regular > 0:
+        verdict_a = (
+            f"supports the amplitude part: the largest amplitude is chaotic at all {T.size} "
+            f"periods, the smallest is regular at {bottom_regular} of them, and chaos, once "
+            "reached, persists to the largest amplitude "
+            + ("at every period." if monotone else "at some periods only.")
+        )
+    else:
+        verdict_a = (
+            f"does not cleanly support the amplitude part: the largest amplitude is "
+            f"chaotic at {top_chaotic} of {T.size} periods, the smallest regular at "
+            f"{bottom_regular}."
+        )
+    lines.append(f"Amplitude: the map {verdict_a}")
+    lam_t = cmap["lambda_time"].values
+    if T.size > 1:
+        # amplitudes where the shortest period is chaotic while some longer one is not
+        emerge = [A[i] for i in range(A.size) if ch[i, 0] == 1 and np.any(ch[i, 1:] != 1)]
+        # amplitudes where the shortest period has the largest exponent per unit time
+        faster = [
+            A[i]
+            for i in range(A.size)
+            if ch[i, 0] == 1
+            and np.all(np.isfinite(lam_t[i]))
+            and lam_t[i, 0] >= np.max(lam_t[i, 1:])
+        ]
+        n_short = int(np.sum(ch[:, 0] == 1))
+        if emerge:
+            verdict_T = (
+                "supports the period part: at a = "
+                + ", ".join(f"{a:g}" for a in emerge)
+                + f" {units['length']} the shortest period is chaotic while a longer "
+                "one is not."
+            )
+        elif faster:
+            verdict_T = (
+                f"is consistent with the period part only weakly: the shortest period is "
+                f"chaotic at {n_short} of {A.size} amplitudes and has the largest exponent "
+                f"per unit time at {len(faster)} of them, but no amplitude is regular at "
+                "long periods and chaotic at short ones within the grid."
+            )
+        else:
+            verdict_T = "does not show chaos appearing or strengthening as T shrinks in the grid."
+    else:
+        verdict_T = "cannot test the period part (one period only)."
+    lines.append(f"Period: the map {verdict_T}")
+    lines.append("The existence of periodic orbits of arbitrarily long period is not tested.")
+    lines.append("")
+    lines.append("## Continuum models against the discrete column (Fig. 2 problem)")
+    lines.append("")
+    u = units["fig2_length"]
+    lines.append(
+        f"- long-wave (Eq. 35, regularized): RMS distance {dist['rms_abs_longwave']:.3g} {u} "
+        f"in positions, {dist['rms_disp_longwave']:.3g} {u} in displacements from rest "
+        f"(particle diameter {2 * dist['r']:.3g} {u})."
+    )
+    lines.append(
+        f"- BSR (Eq. 45 as printed): RMS distance {dist['rms_abs_bsr']:.3g} {u}; its force is "
+        f"a downward body force at rest, the column collapses onto the floor at "
+        f"t = {dist['bsr_collapse_time']:.3g} {units['fig2_time']}."
+    )
+    lines.append(
+        f"- convergence (successive halvings, h/dz up to {conv.attrs['lw_finest']}): L-W "
+        f"orders {conv.attrs['lw_orders']}, BSR orders {conv.attrs['bsr_orders']} "
+        "(design order 2 on manufactured solutions; the floor's velocity jumps and the "
+        "BSR shocks lower it here)."
+    )
+    return "\n".join(lines) + "\n"
+
+
+@cli.command("fits")
+@params_option
+@click.option("--relaxation", "relax_path", required=True, type=click.Path(exists=True))
+@click.option("--chaos", "chaos_path", required=True, type=click.Path(exists=True))
+@click.option("--continuum", "cont_path", required=True, type=click.Path(exists=True))
+@click.option("--convergence", "conv_path", required=True, type=click.Path(exists=True))
+@click.option("--out-csv", required=True, type=click.Path(dir_okay=False))
+@click.option("--out-nc", required=True, type=click.Path(dir_okay=False))
+@click.option("--out-note", required=True, type=click.Path(dir_okay=False))
+def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_nc, out_note):
+    """Relaxation fit, chaos thresholds, continuum distances: summary.csv rows and a note."""
+    import numpy as np
+    import pandas as pd
+    import xarray as xr
+
+    from ..io import read_dataset, write_text
+    from .study import relaxation_fit
+
+    ens = read_dataset(relax_path)
+    cmap = read_dataset(chaos_path)
+    comp = read_dataset(cont_path)
+    conv = read_dataset(conv_path)
+    units = params.get("units", {"length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s"})
+    rows = []
+
+    def row(q, v, unit, err=np.nan, lo=np.nan, hi=np.nan, n=np.nan, paper=""):
+        rows.append(
+            dict(
+                study="column",
+                quantity=q,
+                value=v,
+                unit=unit,
+                fit_error=err,
+                ci_low=lo,
+                ci_high=hi,
+                n=n,
+                paper_value=paper,
+            )
+        )
+
+    fit = relaxation_fit(ens, int(params.get("n_boot", 1000)))
+    for q, (v, unit, err, lo, hi, n) in fit.items():
+        row(q, v, unit.replace("mass/length", f"kg/{units['length']}"), err, lo, hi, n)
+    A, T = cmap["a"].values, cmap["T"].values
+    for i, a in enumerate(A):
+        for j, t in enumerate(T):
+            row(
+                f"lyapunov_per_tap[a={a:g},T={t:g}]",
+                cmap["lambda_mean"].values[i, j],
+                "1/tap",
+                lo=cmap["lambda_low"].values[i, j],
+                hi=cmap["lambda_high"].values[i, j],
+                n=int(cmap["n"].values[i, j]),
+            )
+    thresholds = np.full(T.size, np.nan)
+    for j, t in enumerate(T):
+        idx = np.where(cmap["chaotic"].values[:, j] == 1)[0]
+        if idx.size:
+            thresholds[j] = A[idx[0]]
+        row(f"chaos_onset_amplitude[T={t:g}]", thresholds[j], units["length"], n=T.size)
+    diff_twin = (cmap["twin_mean"] - cmap["lambda_mean"]).values
+    diff_plain = (cmap["plain_mean"] - cmap["lambda_mean"]).values
+    row(
+        "lyapunov_twin_minus_tangent_mean_abs",
+        float(np.nanmean(np.abs(diff_twin))),
+        "1/tap",
+        n=int(np.isfinite(diff_twin).sum()),
+    )
+    row(
+        "lyapunov_plain_minus_tangent_mean_abs",
+        float(np.nanmean(np.abs(diff_plain))),
+        "1/tap",
+        n=int(np.isfinite(diff_plain).sum()),
+    )
+    row(
+        "chaotic_fraction_of_map",
+        float(np.mean(cmap["chaotic"].values == 1)),
+        "1",
+        n=int(cmap["chaotic"].size),
+    )
+    u2 = units["fig2_length"]
+    for key in ("rms_abs_longwave", "rms_disp_longwave", "rms_abs_bsr", "rms_disp_bsr"):
+        row(f"continuum_{key}", float(comp.attrs[key]), u2, n=int(comp.sizes["time"]))
+    row("bsr_collapse_time", float(comp.attrs["bsr_collapse_time"]), units["fig2_time"])
+    for key in ("lw", "bsr"):
+        orders = [float(x) for x in str(conv.attrs[f"{key}_orders"]).split()]
+        row(
+            f"{key}_observed_order_finest",
+            orders[-1] if orders else np.nan,
+            "1",
+            n=int(conv.attrs[f"{key}_finest"]),
+        )
+    df = pd.DataFrame(rows)
+    write_text(df.to_csv(index=False), out_csv)
+    _log(f"wrote {out_csv} ({len(df)} rows)")
+    fds = xr.Dataset(
+        {
+            "chaos_onset_amplitude": (
+                "T",
+                thresholds,
+                {
+                    "units": units["length"],
+                    "long_name": "smallest amplitude with a chaotic point (NaN: none)",
+                },
+            )
+        },
+        coords={"T": ("T", T, {"units": units["time"], "long_name": "tap period"})},
+        attrs={f"relaxation_{k}": float(v[0]) for k, v in fit.items()},
+    )
+    _write(fds, out_nc, params, stage="fits")
+    note = _theorem1_note(cmap, comp.attrs, conv, units)
+    write_text(note, out_note)
+    click.echo(note)
+
+
+@cli.command("figures")
+@params_option
+@click.option("--trajectories", "traj", required=True, multiple=True, type=click.Path(exists=True))
+@click.option("--continuum", "cont_path", required=True, type=click.Path(exists=True))
+@click.option("--relaxation", "relax_path", required=True, type=click.Path(exists=True))
+@click.option("--chaos", "chaos_path", required=True, type=click.Path(exists=True))
+@click.option("--convergence", "conv_path", required=True, type=click.Path(exists=True))
+@click.option("--outdir", required=True, type=click.Path(file_okay=False))
+def figures_cmd(params, traj, cont_path, relax_path, chaos_path, conv_path, outdir):
+    """Figures 1–6 as PNG and PDF: fig<k>_<name>.{png,pdf}."""
+    from ..figures import column as F
+    from ..io import read_dataset
+    from .study import relaxation_fit
+
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    units = params.get("units", {"length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s"})
+    ens = read_dataset(relax_path)
+    cmap = read_dataset(chaos_path)
+    made = []
+    made += F.save(
+        F.fig1_trajectories([read_dataset(p) for p in traj], units["fig2_length"]),
+        out / "fig1_trajectories",
+    )
+    made += F.save(
+        F.fig2_continuum(read_dataset(cont_path), units["fig2_length"]), out / "fig2_continuum"
+    )
+    made += F.save(
+        F.fig3_density_relaxation(ens, relaxation_fit(ens, 200), f"kg/{units['length']}"),
+        out / "fig3_density_relaxation",
+    )
+    made += F.save(F.fig4_chaos_map(cmap, units["length"], units["time"]), out / "fig4_chaos_map")
+    made += F.save(
+        F.fig5_continuum_convergence(read_dataset(conv_path), units["fig2_length"]),
+        out / "fig5_continuum_convergence",
+    )
+    made += F.save(F.fig6_lyapunov_estimates(cmap), out / "fig6_lyapunov_estimates")
+    for m in made:
+        _log(f"wrote {m}")

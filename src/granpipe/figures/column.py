@@ -1,0 +1,276 @@
+"""Figures of the column study: one function per figure, data in, Figure out.
+
+fig1 trajectories (paper Fig. 1), fig2 continuum vs discrete (paper Fig. 2), and our
+fig3 density relaxation, fig4 chaos map, fig5 continuum convergence, fig6 Lyapunov
+estimates (saltation tangent vs twins vs plain variational).
+"""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import xarray as xr  # noqa: E402
+from matplotlib.colors import TwoSlopeNorm  # noqa: E402
+
+__all__ = [
+    "fig1_trajectories",
+    "fig2_continuum",
+    "fig3_density_relaxation",
+    "fig4_chaos_map",
+    "fig5_continuum_convergence",
+    "fig6_lyapunov_estimates",
+    "save",
+]
+
+
+def save(fig, stem):
+    """Save ``fig`` as ``<stem>.png`` and ``<stem>.pdf`` atomically; return the paths."""
+    from ..io import atomic_path
+
+    paths = []
+    for ext in ("png", "pdf"):
+        path = f"{stem}.{ext}"
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format=ext, dpi=150 if ext == "png" else None, bbox_inches="tight")
+        paths.append(path)
+    plt.close(fig)
+    return paths
+
+
+def fig1_trajectories(runs: list[xr.Dataset], unit: str = "cm", time_unit: str = "s"):
+    """y_1(t) … y_N(t) and the floor for each column (one panel per dataset)."""
+    fig, axes = plt.subplots(1, len(runs), figsize=(6.0 * len(runs), 4.2), squeeze=False)
+    for ax, ds in zip(axes[0], runs, strict=True):
+        t = ds["time"].values
+        ax.plot(t, ds["floor"].values, color="0.3", lw=1.0, ls="--", label="floor $y_0$")
+        cmap = plt.get_cmap("viridis")
+        n = ds.sizes["particle"]
+        for i in range(n):
+            ax.plot(t, ds["y"].values[:, i], lw=0.9, color=cmap(i / max(n - 1, 1)))
+        ax.set_xlabel(f"t [{time_unit}]")
+        ax.set_ylabel(f"$y_i$ [{unit}]")
+        ax.set_title(
+            f"N = {n}, T = {ds.attrs.get('T', np.nan):g} {time_unit}, "
+            f"tap π/ω = {ds.attrs.get('tap_duration', np.nan):.3g} {time_unit}"
+        )
+        ax.legend(loc="upper right", fontsize=8)
+    fig.suptitle("Fig. 1: particle trajectories of the tapped column (Eq. 19)")
+    fig.tight_layout()
+    return fig
+
+
+def fig2_continuum(ds: xr.Dataset, unit: str = "cm", time_unit: str = "s"):
+    """Discrete y_i(t) beside the L-W y(z_i, t) and BSR tracers, with the L-W field."""
+    fig, axes = plt.subplots(2, 2, figsize=(12, 8))
+    t = ds["time"].values
+    n = ds.sizes["particle"]
+    cmap = plt.get_cmap("viridis")
+    panels = (
+        ("y_discrete", "discrete (Eq. 19)", None),
+        (
+            "y_longwave_particles",
+            "long-wave (Eq. 35, regularized)",
+            (ds.attrs["rms_abs_longwave"], ds.attrs["rms_disp_longwave"]),
+        ),
+        (
+            "y_bsr_particles",
+            "BSR (Eq. 45 as printed)",
+            (ds.attrs["rms_abs_bsr"], ds.attrs["rms_disp_bsr"]),
+        ),
+    )
+    for ax, (var, title, dist) in zip(axes.flat[:3], panels, strict=True):
+        for i in range(n):
+            ax.plot(t, ds[var].values[:, i], lw=0.8, color=cmap(i / max(n - 1, 1)))
+        ax.plot(t, ds["floor"].values, color="0.3", lw=0.8, ls="--")
+        if dist is not None:
+            title += (
+                f"\nRMS distance to discrete: {dist[0]:.3g} {unit} (positions), "
+                f"{dist[1]:.3g} {unit} (displacements)"
+            )
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel(f"t [{time_unit}]")
+        ax.set_ylabel(f"height [{unit}]")
+    ax = axes.flat[3]
+    y = ds["y_longwave"].values
+    disp = y - y[0]
+    lim = np.nanmax(np.abs(disp)) or 1.0
+    im = ax.pcolormesh(
+        t,
+        ds["label"].values,
+        disp.T,
+        cmap="RdBu_r",
+        norm=TwoSlopeNorm(0.0, -lim, lim),
+        shading="auto",
+    )
+    fig.colorbar(im, ax=ax, label=f"y(z, t) − y(z, 0) [{unit}]")
+    ax.set_xlabel(f"t [{time_unit}]")
+    ax.set_ylabel(f"label z [{unit}]")
+    ax.set_title("L-W solution surface (displacement from rest)", fontsize=9)
+    ct = ds.attrs.get("bsr_collapse_time", np.nan)
+    fig.suptitle(
+        f"Fig. 2: continuum models beside the discrete column (N = {n}); "
+        f"BSR column collapses onto the floor at t = {ct:.3g} {time_unit}"
+    )
+    fig.tight_layout()
+    return fig
+
+
+def fig3_density_relaxation(ens: xr.Dataset, fit: dict | None = None, unit: str = "kg/m"):
+    """Ensemble mean linear density against tap number, spread and standard error."""
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    tap = ens["tap"].values
+    m = ens["density_mean"].values
+    sd = ens["density_std"].values
+    se = ens["density_sem"].values
+    ax.fill_between(tap, m - sd, m + sd, color="C0", alpha=0.15, label="replica spread (±1 sd)")
+    ax.fill_between(
+        tap, m - 1.96 * se, m + 1.96 * se, color="C0", alpha=0.35, label="95% interval of the mean"
+    )
+    ax.plot(tap, m, color="C0", lw=1.2, label=f"mean over {int(ens['count'].max())} replicas")
+    if fit is not None and np.isfinite(fit["relaxed_density"][0]):
+        rinf, drho, tau = (
+            fit["relaxed_density"][0],
+            fit["density_change"][0],
+            fit["relaxation_taps"][0],
+        )
+        ax.plot(
+            tap,
+            rinf - drho * np.exp(-tap / tau),
+            color="C3",
+            lw=1.0,
+            ls="--",
+            label=f"ρ∞ − Δρ exp(−n/τ), τ = {tau:.3g} taps",
+        )
+    ax.set_xlabel("tap number n (sample at (n + 0.99) T)")
+    ax.set_ylabel(f"mean linear density N m / H [{unit}]")
+    ax.set_title("Density relaxation of the tapped column (generic set)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def fig4_chaos_map(cmap_ds: xr.Dataset, length_unit: str = "m", time_unit: str = "s"):
+    """λ per tap over (a, T); chaotic points (interval above 0) marked, regular ones too."""
+    A = cmap_ds["a"].values
+    T = cmap_ds["T"].values
+    lam = cmap_ds["lambda_mean"].values
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5))
+    for ax, field, label in (
+        (axes[0], lam, "λ [1/tap]"),
+        (axes[1], cmap_ds["lambda_time"].values, f"λ/T [1/{time_unit}]"),
+    ):
+        lim = np.nanmax(np.abs(field)) if np.any(np.isfinite(field)) else 1.0
+        norm = TwoSlopeNorm(0.0, -lim, lim) if np.nanmin(field) < 0 < np.nanmax(field) else None
+        im = ax.pcolormesh(
+            np.arange(T.size + 1),
+            np.arange(A.size + 1),
+            field,
+            cmap="RdBu_r",
+            norm=norm,
+            shading="flat",
+        )
+        fig.colorbar(im, ax=ax, label=label)
+        chaotic = cmap_ds["chaotic"].values
+        for i in range(A.size):
+            for j in range(T.size):
+                txt = f"{field[i, j]:.2g}"
+                if chaotic[i, j] == 1:
+                    ax.add_patch(plt.Rectangle((j, i), 1, 1, fill=False, hatch="//", lw=0))
+                    txt += "\nchaos"
+                elif chaotic[i, j] == 0:
+                    txt += "\nregular"
+                else:
+                    txt += "\n?"
+                if cmap_ds["failed"].values[i, j]:
+                    txt += f"\n{int(cmap_ds['failed'].values[i, j])} broke"
+                ax.text(j + 0.5, i + 0.5, txt, ha="center", va="center", fontsize=7)
+        ax.set_xticks(np.arange(T.size) + 0.5, [f"{x:g}" for x in T])
+        ax.set_yticks(np.arange(A.size) + 0.5, [f"{x:g}" for x in A])
+        ax.set_xlabel(f"tap period T [{time_unit}]")
+        ax.set_ylabel(f"tap amplitude a [{length_unit}]")
+    conf = cmap_ds.attrs.get("confidence", 0.95)
+    fig.suptitle(
+        f"Largest Lyapunov exponent of the tapped column (tangent with saltation); "
+        f"hatched: {conf:.0%} t-interval above 0 (chaos), 'regular': below 0"
+    )
+    fig.tight_layout()
+    return fig
+
+
+def fig5_continuum_convergence(conv: xr.Dataset, unit: str = "cm"):
+    """Successive-difference errors of both solvers against h/Δz, with slope guides."""
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for var, coord, label, c in (
+        ("lw_error", "lw_refinement", f"L-W, orders {conv.attrs['lw_orders']}", "C0"),
+        ("bsr_error", "bsr_refinement", f"BSR, orders {conv.attrs['bsr_orders']}", "C1"),
+    ):
+        k = conv[coord].values
+        e = conv[var].values
+        ax.loglog(k, e, "o-", color=c, label=label)
+        if k.size:
+            for order, ls in ((1, ":"), (2, "--")):
+                ax.loglog(k, e[0] * (k / k[0]) ** (-order), ls, color=c, lw=0.7)
+    ax.set_xlabel("h / Δz")
+    ax.set_ylabel(f"max |u(Δz) − u(Δz/2)| [{unit}]")
+    ax.set_title(
+        "Continuum solvers under refinement (Fig. 2 problem); guides: order 1, 2", fontsize=9
+    )
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def fig6_lyapunov_estimates(cmap_ds: xr.Dataset):
+    """Twin and plain-variational estimates against the saltation tangent, with intervals."""
+    fig, ax = plt.subplots(figsize=(6, 5.5))
+    x = cmap_ds["lambda_mean"].values.ravel()
+    xe = np.vstack(
+        [x - cmap_ds["lambda_low"].values.ravel(), cmap_ds["lambda_high"].values.ravel() - x]
+    )
+    for key, label, c in (
+        ("twin", "twin trajectories", "C0"),
+        ("plain", "variational, no saltation", "C3"),
+    ):
+        y = cmap_ds[f"{key}_mean"].values.ravel()
+        ye = np.vstack(
+            [y - cmap_ds[f"{key}_low"].values.ravel(), cmap_ds[f"{key}_high"].values.ravel() - y]
+        )
+        ok = np.isfinite(x) & np.isfinite(y)
+        ax.errorbar(
+            x[ok],
+            y[ok],
+            xerr=np.abs(np.nan_to_num(xe[:, ok])),
+            yerr=np.abs(np.nan_to_num(ye[:, ok])),
+            fmt="o",
+            ms=4,
+            color=c,
+            lw=0.7,
+            label=label,
+        )
+    lo = np.nanmin(
+        [
+            np.nanmin(x),
+            np.nanmin(cmap_ds["twin_mean"].values),
+            np.nanmin(cmap_ds["plain_mean"].values),
+        ]
+    )
+    hi = np.nanmax(
+        [
+            np.nanmax(x),
+            np.nanmax(cmap_ds["twin_mean"].values),
+            np.nanmax(cmap_ds["plain_mean"].values),
+        ]
+    )
+    ax.plot([lo, hi], [lo, hi], color="0.4", lw=0.8)
+    ax.axhline(0, color="0.8", lw=0.6)
+    ax.axvline(0, color="0.8", lw=0.6)
+    ax.set_xlabel("λ, tangent with saltation [1/tap]")
+    ax.set_ylabel("λ, other estimate [1/tap]")
+    ax.set_title("Saltation matters: twins follow the corrected tangent", fontsize=9)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
