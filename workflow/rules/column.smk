@@ -1,81 +1,26 @@
 # column study (SPEC.md §2): runs -> ensemble -> fits -> figures (no init stage: the start is
 # the closed-form equilibrium of Eq. 27, perturbed per replica inside the runs).
 # Rules only call `granpipe column <stage>`; params carry the exact config subset each rule
-# depends on, so an edit reruns what it touches: a figure-1 column reruns its trajectory;
-# relaxation physics/n_taps/batch_size/perturbation rerun the relaxation batches, n_replicas
-# only adds batches; chaos physics and settings rerun the points, the grids add or drop
-# points; confidence -> chaos map onwards; n_boot/units -> fits and figures.
-
+# depends on (granpipe.column.layout), so an edit reruns what it touches: a figure-1 column
+# reruns its trajectory; relaxation physics/n_taps/batch_size/perturbation rerun the
+# relaxation batches, n_replicas only adds batches; chaos physics and settings rerun the
+# points, the grids add or drop points; confidence -> chaos map onwards; n_boot/units ->
+# fits and figures.
 
 import shlex
 
+from granpipe.column import layout as column_layout
 
-def _column_cfg():
-    return config.get("column", {})
-
-
-COLUMN = _column_cfg()
-COLUMN_STEP = COLUMN.get("integrator", {}).get("step_factor", 0.1)
-COLUMN_UNITS = {
-    "length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s",
-    **COLUMN.get("units", {}),
-}
-
-
-def column_sets():
-    sets = COLUMN["figure1"]["sets"] if enabled("column") else {}
-    return sorted(sets, key=lambda name: (sets[name]["N"], name))
-
-
-def column_relaxation_batches():
-    r = COLUMN["relaxation"]
-    return batch_ids(r.get("n_replicas", 8), r.get("batch_size", 4))
-
-
-def column_chaos_points():
-    c = COLUMN["chaos"]
-    return [f"a={a:g},T={t:g}" for a in c["amplitudes"] for t in c["periods"]]
-
-
-def column_relaxation_params():
-    r = COLUMN["relaxation"]
-    return {
-        "physics": r["physics"],
-        "n_taps": r.get("n_taps", 100),
-        "batch_size": r.get("batch_size", 4),
-        "perturbation": r.get("perturbation", 1.0),
-        "step_factor": COLUMN_STEP,
-    }
-
-
-def column_chaos_params():
-    c = COLUMN["chaos"]
-    keys = ("n_replicas", "transient_taps", "taps", "perturbation", "twin_epsilon", "plain")
-    defaults = (4, 3, 15, 1.0, 1.0e-9, True)
-    return {
-        "physics": c["physics"],
-        **{k: c.get(k, v) for k, v in zip(keys, defaults)},
-        "step_factor": COLUMN_STEP,
-    }
-
-
-def column_continuum_params(with_convergence=False):
-    c = COLUMN["continuum"]
-    p = {
-        "physics": c["physics"],
-        "viscosity": c.get("viscosity", "dissipative"),
-        "step_factor": COLUMN_STEP,
-    }
-    if with_convergence:
-        p["convergence"] = {
-            "t_end": 1.0, "lw_refinements": [2, 4, 8, 16, 32, 64],
-            "bsr_refinements": [2, 4, 8, 16, 32], "bsr_t_end": 0.1,
-            **c.get("convergence", {}),
-        }
-    else:
-        p.update({k: c.get(k, v) for k, v in
-                  (("n_taps", 4), ("lw_dz", 0.25), ("bsr_dz", 0.25), ("record_dt", 0.01))})
-    return p
+COLUMN = config.get("column", {})
+COLUMN_ON = enabled("column")
+COLUMN_SETS = column_layout.figure_sets(COLUMN) if COLUMN_ON else []
+COLUMN_BATCHES = column_layout.relaxation_batches(COLUMN) if COLUMN_ON else []
+COLUMN_POINTS = column_layout.chaos_points(COLUMN) if COLUMN_ON else []
+COLUMN_RELAX = column_layout.relaxation_params(COLUMN) if COLUMN_ON else {}
+COLUMN_CHAOS = column_layout.chaos_params(COLUMN) if COLUMN_ON else {}
+COLUMN_CONT = column_layout.continuum_params(COLUMN) if COLUMN_ON else {}
+COLUMN_CONV = column_layout.continuum_params(COLUMN, True) if COLUMN_ON else {}
+COLUMN_FITS = column_layout.fits_params(COLUMN) if COLUMN_ON else {}
 
 
 wildcard_constraints:
@@ -90,12 +35,7 @@ rule column_trajectories:
     output:
         out("column", "runs", "trajectories_{column_set}.nc"),
     params:
-        json=lambda w: as_json({
-            "sets": {w.column_set: COLUMN["figure1"]["sets"][w.column_set]},
-            "n_taps": COLUMN["figure1"].get("n_taps", 4),
-            "record_dt": COLUMN["figure1"].get("record_dt", 0.001),
-            "step_factor": COLUMN_STEP,
-        }),
+        json=lambda w: as_json(column_layout.trajectory_params(COLUMN, w.column_set)),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -116,15 +56,14 @@ rule column_relaxation:
     output:
         out("column", "runs", "relaxation", "batch_{column_batch}.nc"),
     params:
-        json=lambda w: as_json(column_relaxation_params()),
+        json=lambda w: as_json(COLUMN_RELAX),
     conda:
         "../envs/granpipe.yaml"
     log:
         log_path("column", "runs", "relaxation_{column_batch}.log"),
     threads: 1
     resources:
-        runtime=lambda w: int(5 + 0.01 * column_relaxation_params()["n_taps"]
-                              * column_relaxation_params()["batch_size"]),
+        runtime=lambda w: int(5 + 0.01 * COLUMN_RELAX["n_taps"] * COLUMN_RELAX["batch_size"]),
         mem_mb=1000,
     shell:
         "granpipe column relaxation --params {params.json:q} --batch {wildcards.column_batch}"
@@ -136,15 +75,14 @@ rule column_chaos:
     output:
         out("column", "runs", "chaos", "a={column_a},T={column_T}.nc"),
     params:
-        json=lambda w: as_json(column_chaos_params()),
+        json=lambda w: as_json(COLUMN_CHAOS),
     conda:
         "../envs/granpipe.yaml"
     log:
         log_path("column", "runs", "chaos_a={column_a},T={column_T}.log"),
     threads: 1
     resources:
-        runtime=lambda w: int(5 + 0.05 * column_chaos_params()["n_replicas"]
-                              * column_chaos_params()["taps"]),
+        runtime=lambda w: int(5 + 0.05 * COLUMN_CHAOS["n_replicas"] * COLUMN_CHAOS["taps"]),
         mem_mb=1000,
     group:
         "column_chaos"
@@ -158,7 +96,7 @@ rule column_continuum:
     output:
         out("column", "runs", "continuum.nc"),
     params:
-        json=lambda w: as_json(column_continuum_params()),
+        json=lambda w: as_json(COLUMN_CONT),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -176,7 +114,7 @@ rule column_convergence:
     output:
         out("column", "runs", "convergence.nc"),
     params:
-        json=lambda w: as_json(column_continuum_params(with_convergence=True)),
+        json=lambda w: as_json(COLUMN_CONV),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -190,10 +128,9 @@ rule column_convergence:
 
 
 rule column_ensemble_relaxation:
-    """Relaxation batches -> per-tap mean, spread, standard error, count."""
+    """Relaxation batches -> per-tap mean, spread, standard error, count, stick band."""
     input:
-        lambda w: [out("column", "runs", "relaxation", f"batch_{b}.nc")
-                   for b in column_relaxation_batches()],
+        [out("column", "runs", "relaxation", f"batch_{b}.nc") for b in COLUMN_BATCHES],
     output:
         out("column", "ensemble", "relaxation.nc"),
     params:
@@ -214,7 +151,7 @@ rule column_ensemble_relaxation:
 rule column_ensemble_chaos:
     """Chaos points -> the (a, T) map with t-intervals and the chaotic/regular flags."""
     input:
-        lambda w: [out("column", "runs", "chaos", f"{pt}.nc") for pt in column_chaos_points()],
+        [out("column", "runs", "chaos", f"{pt}.nc") for pt in COLUMN_POINTS],
     output:
         out("column", "ensemble", "chaos_map.nc"),
     params:
@@ -233,7 +170,7 @@ rule column_ensemble_chaos:
 
 
 rule column_fits:
-    """Relaxation fit, chaos thresholds and the Theorem 1 note, continuum distances."""
+    """Relaxation statistics, chaos thresholds, the Theorem 1 note, continuum distances."""
     input:
         relaxation=rules.column_ensemble_relaxation.output[0],
         chaos=rules.column_ensemble_chaos.output[0],
@@ -248,10 +185,7 @@ rule column_fits:
             caption="../report/column_note.rst",
         ),
     params:
-        json=lambda w: as_json({
-            "n_boot": COLUMN["relaxation"].get("n_boot", 1000),
-            "units": COLUMN_UNITS,
-        }),
+        json=lambda w: as_json(COLUMN_FITS),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -267,34 +201,30 @@ rule column_fits:
         " --out-nc {output.nc:q} --out-note {output.note:q} > {log:q} 2>&1"
 
 
-COLUMN_FIGURES = (
-    ("fig1_trajectories", "Paper Fig. 1: particle trajectories of the tapped columns."),
-    ("fig2_continuum", "Paper Fig. 2: L-W and BSR beside the discrete column."),
-    ("fig3_density_relaxation", "Density relaxation against tap number."),
-    ("fig4_chaos_map", "Largest Lyapunov exponent over (a, T)."),
-    ("fig5_continuum_convergence", "Continuum solvers under refinement."),
-    ("fig6_lyapunov_estimates", "Saltation tangent vs twins vs plain variational."),
-)
-
-
 rule column_figures:
     """Figures 1-6 (PNG for the report, PDF beside them)."""
     input:
-        trajectories=lambda w: [out("column", "runs", f"trajectories_{s}.nc")
-                                for s in column_sets()],
+        trajectories=[out("column", "runs", f"trajectories_{s}.nc") for s in COLUMN_SETS],
         continuum=rules.column_continuum.output[0],
         relaxation=rules.column_ensemble_relaxation.output[0],
         chaos=rules.column_ensemble_chaos.output[0],
         convergence=rules.column_convergence.output[0],
     output:
-        png=[report(out("column", "figures", f"{name}.png"), category="column",
-                    caption=f"../report/column_{name.split('_')[0]}.rst")
-             for name, _ in COLUMN_FIGURES],
-        pdf=[out("column", "figures", f"{name}.pdf") for name, _ in COLUMN_FIGURES],
+        png=[
+            report(
+                out("column", "figures", f"{name}.png"),
+                category="column",
+                caption=f"../report/column_{name.split('_')[0]}.rst",
+            )
+            for name in column_layout.FIGURES
+        ],
+        pdf=[out("column", "figures", f"{name}.pdf") for name in column_layout.FIGURES],
     params:
-        json=lambda w: as_json({"units": COLUMN_UNITS}),
+        json=lambda w: as_json({"units": COLUMN_FITS.get("units", {})}),
         outdir=lambda w, output: str(Path(output.png[0]).parent),
-        traj=lambda w, input: " ".join(f"--trajectories {shlex.quote(p)}" for p in input.trajectories),
+        traj=lambda w, input: " ".join(
+            f"--trajectories {shlex.quote(p)}" for p in input.trajectories
+        ),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -310,7 +240,7 @@ rule column_figures:
         " --outdir {params.outdir:q} > {log:q} 2>&1"
 
 
-if enabled("column"):
+if COLUMN_ON:
     register_targets(
         "column",
         lambda: [

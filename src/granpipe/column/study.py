@@ -22,6 +22,7 @@ import xarray as xr
 from scipy import stats
 
 from ..errors import SimulationError
+from ..io import config_from_attrs
 from ..seeds import replica_rng, replica_seed
 from . import continuum as cont
 from . import discrete as d
@@ -189,7 +190,8 @@ def relaxation_batch(
 
 def relaxation_ensemble(batches: Iterable[xr.Dataset]):
     """Mean, standard deviation (spread), standard error and count per tap over replicas."""
-    ds = xr.concat(list(batches), dim="replica")
+    batches_list = list(batches)
+    ds = xr.concat(batches_list, dim="replica")
     out = {}
     for name, unit in (("density", "mass/length"), ("height", "length")):
         x = ds[name]
@@ -216,56 +218,80 @@ def relaxation_ensemble(batches: Iterable[xr.Dataset]):
     )
     res = xr.Dataset(out, coords={"tap": ds["tap"]}, attrs=dict(ds.attrs))
     res["density_replicas"] = ds["density"]
+    phys = None
+    for b in batches_list:
+        phys = config_from_attrs(b).get("physics")
+        if phys:
+            break
+    if phys:
+        res.attrs.update(stick_band_densities(physics(phys)))
     return res
 
 
-def relaxation_fit(ens: xr.Dataset, n_boot: int = 1000, seed: int = 0):
-    """Fit ρ(n) = ρ∞ − Δρ exp(−n/τ) to the ensemble mean density; bootstrap over replicas.
+def stick_band_densities(p: ColumnParams) -> dict:
+    """Linear densities of the equilibrium column and of the stick-band limits.
 
-    Returns a dict quantity -> (value, unit, fit_error, ci_low, ci_high, n).
+    A column at rest has every contact stuck with force F_j = (weight above) inside
+    [K(1−e)c_j, K(1+e)c_j], so c_j ∈ [c_eq/(1+e), c_eq/(1−e)]: the rest height, and hence
+    the density a tapped column can settle to, is confined to this band.
     """
-    from scipy.optimize import curve_fit
+    sc = p.mass_ratio * p.N * (p.N + 1) / 2  # Σ c_eq
+    H = 2 * p.N * p.r
+    return {
+        "density_equilibrium": p.N * p.m / (H - sc),
+        "density_band_low": p.N * p.m / (H - sc / (1 + p.e)),
+        "density_band_high": p.N * p.m / (H - sc / (1 - p.e)),
+    }
 
+
+def relaxation_fit(ens: xr.Dataset, n_boot: int = 1000, seed: int = 0, confidence=0.95):
+    """What the taps do to the rest density, with Student-t intervals over replicas.
+
+    * ``relaxed_density``: mean over the second half of the taps (per replica, then over
+      replicas);
+    * ``density_change``: that minus the replica's start (paired);
+    * ``density_trend``: least-squares slope per tap over the second half (a drift left
+      there means the run is still relaxing);
+    * ``relaxation_taps``: taps until the replica-mean curve first enters the band
+      relaxed ± 2 standard errors (NaN if it starts there);
+    * ``band_position``: where the relaxed density sits in the stick band (0 = loosest,
+      1 = densest rest state, see :func:`stick_band_densities`).
+
+    Returns a dict quantity -> (value, unit, fit_error, ci_low, ci_high, n). ``n_boot`` and
+    ``seed`` are kept for interface stability (the intervals are t-intervals).
+    """
     rep = ens["density_replicas"].values
     taps = ens["tap"].values.astype(float)
-
-    def model(n, rinf, drho, tau):
-        return rinf - drho * np.exp(-n / tau)
-
-    def fit(y):
-        p0 = (y[-max(3, y.size // 4) :].mean(), y[-1] - y[0], max(1.0, taps[-1] / 5))
-        try:
-            popt, pcov = curve_fit(
-                model,
-                taps,
-                y,
-                p0=p0,
-                maxfev=20000,
-                bounds=([0, -np.inf, 1e-3], [np.inf, np.inf, 1e6]),
-            )
-        except (RuntimeError, ValueError):
-            return np.full(3, np.nan), np.full(3, np.nan)
-        return popt, np.sqrt(np.diag(pcov))
-
-    mean = np.nanmean(rep, axis=0)
-    popt, perr = fit(mean)
-    rng = np.random.default_rng(seed)
-    boots = []
-    n = rep.shape[0]
-    for _ in range(n_boot if n > 1 else 0):
-        idx = rng.integers(0, n, n)
-        boots.append(fit(np.nanmean(rep[idx], axis=0))[0])
-    boots = np.array(boots) if boots else np.full((1, 3), np.nan)
-    lo, hi = np.nanpercentile(boots, [2.5, 97.5], axis=0) if n > 1 else (np.full(3, np.nan),) * 2
-    late = rep[:, taps >= taps[-1] / 2].mean(axis=1)
-    m, l2, h2, nn = t_interval(late)
+    late = taps >= max(1.0, taps[-1] / 2)
     unit = "mass/length"
-    return {
-        "relaxed_density": (popt[0], unit, perr[0], lo[0], hi[0], n),
-        "relaxation_taps": (popt[2], "taps", perr[2], lo[2], hi[2], n),
-        "density_change": (popt[1], unit, perr[1], lo[1], hi[1], n),
-        "late_mean_density": (m, unit, np.nan, l2, h2, nn),
+    per_rep = np.nanmean(rep[:, late], axis=1)
+    m, lo, hi, n = t_interval(per_rep, confidence)
+    dm, dlo, dhi, _ = t_interval(per_rep - rep[:, 0], confidence)
+    slopes = np.array([np.polyfit(taps[late], r[late], 1)[0] for r in rep])
+    sm, slo, shi, _ = t_interval(slopes, confidence)
+    mean_curve = np.nanmean(rep, axis=0)
+    sem = (hi - lo) / 2 if np.isfinite(hi) else 0.0
+    inside = np.abs(mean_curve - m) <= 2 * sem
+    tau = float(taps[np.argmax(inside)]) if inside.any() and not inside[0] else np.nan
+    out = {
+        "relaxed_density": (m, unit, np.nan, lo, hi, n),
+        "density_change": (dm, unit, np.nan, dlo, dhi, n),
+        "density_trend": (sm, unit + "/tap", np.nan, slo, shi, n),
+        "relaxation_taps": (tau, "taps", np.nan, np.nan, np.nan, n),
     }
+    a = ens.attrs
+    if "density_band_low" in a:
+        width = a["density_band_high"] - a["density_band_low"]
+        out["band_position"] = (
+            (m - a["density_band_low"]) / width,
+            "1",
+            np.nan,
+            (lo - a["density_band_low"]) / width,
+            (hi - a["density_band_low"]) / width,
+            n,
+        )
+        out["equilibrium_density"] = (a["density_equilibrium"], unit, np.nan, np.nan, np.nan, 1)
+    return out
 
 
 # --------------------------------------------------------------------------- 3. chaos map

@@ -132,19 +132,28 @@ def fig3_density_relaxation(ens: xr.Dataset, fit: dict | None = None, unit: str 
     )
     ax.plot(tap, m, color="C0", lw=1.2, label=f"mean over {int(ens['count'].max())} replicas")
     if fit is not None and np.isfinite(fit["relaxed_density"][0]):
-        rinf, drho, tau = (
-            fit["relaxed_density"][0],
-            fit["density_change"][0],
-            fit["relaxation_taps"][0],
-        )
-        ax.plot(
-            tap,
-            rinf - drho * np.exp(-tap / tau),
+        v, _, _, lo, hi, _ = fit["relaxed_density"]
+        ax.axhline(
+            v,
             color="C3",
             lw=1.0,
             ls="--",
-            label=f"ρ∞ − Δρ exp(−n/τ), τ = {tau:.3g} taps",
+            label=f"relaxed (second half): {v:.6g} [{lo:.6g}, {hi:.6g}]",
         )
+    a = ens.attrs
+    if "density_equilibrium" in a:
+        ax.axhline(
+            a["density_equilibrium"],
+            color="0.2",
+            lw=0.8,
+            ls=":",
+            label="equilibrium start (Eq. 27)",
+        )
+        for key, lab in (
+            ("density_band_low", "stick-band limits (loosest / densest rest)"),
+            ("density_band_high", None),
+        ):
+            ax.axhline(a[key], color="0.5", lw=0.8, ls="-.", label=lab)
     ax.set_xlabel("tap number n (sample at (n + 0.99) T)")
     ax.set_ylabel(f"mean linear density N m / H [{unit}]")
     ax.set_title("Density relaxation of the tapped column (generic set)")

@@ -1,0 +1,128 @@
+"""Config subsets and file names of the column workflow (used by workflow/rules/column.smk).
+
+Each ``*_params`` function returns exactly the config subset one rule depends on (schema
+defaults filled), so Snakemake's parameter trigger reruns only what an edit touches.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+__all__ = [
+    "FIGURES",
+    "step_factor",
+    "units",
+    "figure_sets",
+    "trajectory_params",
+    "relaxation_batches",
+    "relaxation_params",
+    "chaos_points",
+    "chaos_params",
+    "continuum_params",
+    "fits_params",
+]
+
+FIGURES = (
+    "fig1_trajectories",
+    "fig2_continuum",
+    "fig3_density_relaxation",
+    "fig4_chaos_map",
+    "fig5_continuum_convergence",
+    "fig6_lyapunov_estimates",
+)
+
+
+def step_factor(cfg: Mapping) -> float:
+    return float(cfg.get("integrator", {}).get("step_factor", 0.1))
+
+
+def units(cfg: Mapping) -> dict:
+    return {
+        "length": "m",
+        "time": "s",
+        "fig2_length": "cm",
+        "fig2_time": "s",
+        **cfg.get("units", {}),
+    }
+
+
+def figure_sets(cfg: Mapping) -> list[str]:
+    """Names of the figure-1 columns, ordered by N (the paper: N = 5 left, N = 10 right)."""
+    sets = cfg["figure1"]["sets"]
+    return sorted(sets, key=lambda name: (sets[name]["N"], name))
+
+
+def trajectory_params(cfg: Mapping, name: str) -> dict:
+    f = cfg["figure1"]
+    return {
+        "sets": {name: f["sets"][name]},
+        "n_taps": f.get("n_taps", 4),
+        "record_dt": f.get("record_dt", 0.001),
+        "step_factor": step_factor(cfg),
+    }
+
+
+def relaxation_batches(cfg: Mapping) -> list[str]:
+    """Batch ids 0000, 0001, …: whole batches covering n_replicas (batches are always full)."""
+    r = cfg["relaxation"]
+    n, size = int(r.get("n_replicas", 8)), int(r.get("batch_size", 4))
+    return [f"{b:04d}" for b in range(-(-n // size))]
+
+
+def relaxation_params(cfg: Mapping) -> dict:
+    r = cfg["relaxation"]
+    return {
+        "physics": r["physics"],
+        "n_taps": r.get("n_taps", 100),
+        "batch_size": r.get("batch_size", 4),
+        "perturbation": r.get("perturbation", 1.0),
+        "step_factor": step_factor(cfg),
+    }
+
+
+def chaos_points(cfg: Mapping) -> list[str]:
+    """Point names ``a=<a>,T=<T>`` of the chaos grid."""
+    c = cfg["chaos"]
+    return [f"a={a:g},T={t:g}" for a in c["amplitudes"] for t in c["periods"]]
+
+
+def chaos_params(cfg: Mapping) -> dict:
+    c = cfg["chaos"]
+    defaults = {
+        "n_replicas": 4,
+        "transient_taps": 3,
+        "taps": 15,
+        "perturbation": 1.0,
+        "twin_epsilon": 1.0e-9,
+        "plain": True,
+    }
+    return {
+        "physics": c["physics"],
+        **{k: c.get(k, v) for k, v in defaults.items()},
+        "step_factor": step_factor(cfg),
+    }
+
+
+def continuum_params(cfg: Mapping, with_convergence: bool = False) -> dict:
+    c = cfg["continuum"]
+    p = {
+        "physics": c["physics"],
+        "viscosity": c.get("viscosity", "dissipative"),
+        "step_factor": step_factor(cfg),
+    }
+    if with_convergence:
+        p["convergence"] = {
+            "t_end": 1.0,
+            "lw_refinements": [2, 4, 8, 16, 32, 64],
+            "bsr_refinements": [2, 4, 8, 16, 32],
+            "bsr_t_end": 0.1,
+            **c.get("convergence", {}),
+        }
+    else:
+        defaults = {"n_taps": 4, "lw_dz": 0.25, "bsr_dz": 0.25, "record_dt": 0.01}
+        p.update({k: c.get(k, v) for k, v in defaults.items()})
+    return p
+
+
+def fits_params(cfg: Mapping) -> dict:
+    return {"n_boot": cfg["relaxation"].get("n_boot", 1000), "units": units(cfg)}
