@@ -326,9 +326,9 @@ def _theorem1_note(cmap, dist, conv, units, relax=None):
 def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_nc, out_note):
     """Relaxation fit, chaos thresholds, continuum distances: summary.csv rows and a note."""
     import numpy as np
-    import pandas as pd
     import xarray as xr
 
+    from ..analysis.summary import summary_row, write_summary
     from ..io import read_dataset, write_text
     from .study import relaxation_fit
 
@@ -339,20 +339,8 @@ def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_
     units = params.get("units", {"length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s"})
     rows = []
 
-    def row(q, v, unit, err=np.nan, lo=np.nan, hi=np.nan, n=np.nan, paper=""):
-        rows.append(
-            dict(
-                study="column",
-                quantity=q,
-                value=v,
-                unit=unit,
-                fit_error=err,
-                ci_low=lo,
-                ci_high=hi,
-                n=n,
-                paper_value=paper,
-            )
-        )
+    def row(q, v, unit, err=None, lo=None, hi=None, n=None):
+        rows.append(summary_row("column", q, v, unit, err, lo, hi, n))
 
     fit = relaxation_fit(ens, int(params.get("n_boot", 1000)))
     for q, (v, unit, err, lo, hi, n) in fit.items():
@@ -406,9 +394,9 @@ def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_
             "1",
             n=int(conv.attrs[f"{key}_finest"]),
         )
-    df = pd.DataFrame(rows)
-    write_text(df.to_csv(index=False), out_csv)
-    _log(f"wrote {out_csv} ({len(df)} rows)")
+    # the column's own file: rewritten whole (merge=False), so a dropped grid point leaves
+    write_summary(rows, out_csv, merge=False)
+    _log(f"wrote {out_csv} ({len(rows)} rows)")
     fds = xr.Dataset(
         {
             "chaos_onset_amplitude": (
