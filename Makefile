@@ -36,7 +36,7 @@ quick: env
 	$(BIN)/snakemake --cores $(CORES) --configfile config/quick.yaml
 
 test: env
-	$(BIN)/python -m pytest $(PYTEST_ARGS)
+	$(BIN)/python -m pytest --durations=15 $(PYTEST_ARGS)
 
 lint: env
 	$(BIN)/ruff check . && $(BIN)/ruff format --check . && $(BIN)/snakemake --lint
