@@ -23,7 +23,8 @@ def expected_run_files(study: str, section: dict) -> list[str] | None:
     modname = f"granpipe.{study}.layout"
     if importlib.util.find_spec(modname) is None:
         return None
-    return list(importlib.import_module(modname).run_files(section))
+    run_files = getattr(importlib.import_module(modname), "run_files", None)
+    return None if run_files is None else list(run_files(section))
 
 
 def _summary_lines(csv: Path, limit: int = 12) -> list[str]:

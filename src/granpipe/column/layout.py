@@ -126,3 +126,15 @@ def continuum_params(cfg: Mapping, with_convergence: bool = False) -> dict:
 
 def fits_params(cfg: Mapping) -> dict:
     return {"n_boot": cfg["relaxation"].get("n_boot", 1000), "units": units(cfg)}
+
+
+def run_files(cfg: Mapping) -> list[str]:
+    """Every simulation output a config section asks for, relative to
+    ``results/<scale>/column/`` (what ``granpipe status`` counts; column.smk writes these)."""
+    return [
+        *(f"runs/trajectories_{s}.nc" for s in figure_sets(cfg)),
+        *(f"runs/relaxation/batch_{b}.nc" for b in relaxation_batches(cfg)),
+        *(f"runs/chaos/{pt}.nc" for pt in chaos_points(cfg)),
+        "runs/continuum.nc",
+        "runs/convergence.nc",
+    ]
