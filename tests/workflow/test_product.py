@@ -11,8 +11,8 @@ directory is refused by Snakemake's lock, and ``--report`` gathers every figure.
 from __future__ import annotations
 
 import copy
-import re
 import os
+import re
 import signal
 import subprocess
 import time
