@@ -16,6 +16,7 @@ the key (dotted path, e.g. ``drum.physics.dt``) and the expected form.
 from __future__ import annotations
 
 import copy
+import functools
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -88,23 +89,34 @@ def _message(err) -> str:
     )
 
 
-def _check_with_jsonschema(cfg: Mapping, schema_file: Path) -> None:
-    """Collect every violation with its key path (clearer than the first error alone)."""
+@functools.lru_cache(maxsize=8)
+def _validator(schema_file: Path, mtimes: tuple):
+    """A Draft 2020-12 validator of ``schema_file`` with its sibling ``$ref`` files
+    (cached per file set and modification times)."""
     import jsonschema
     from referencing import Registry, Resource
 
     schema = yaml.safe_load(schema_file.read_text())
-    base = schema_file.resolve().parent
+    base = schema_file.parent
 
     def retrieve(uri: str):
         name = uri.rsplit("/", 1)[-1]
         return Resource.from_contents(yaml.safe_load((base / name).read_text()))
 
-    schema["$id"] = schema_file.resolve().as_uri()
+    schema["$id"] = schema_file.as_uri()
     registry = Registry(retrieve=retrieve).with_resource(
         schema["$id"], Resource.from_contents(schema)
     )
-    validator = jsonschema.Draft202012Validator(schema, registry=registry)
+    return jsonschema.Draft202012Validator(schema, registry=registry)
+
+
+def _check_with_jsonschema(cfg: Mapping, schema_file: Path) -> None:
+    """Collect every violation with its key path (clearer than the first error alone)."""
+    import jsonschema
+
+    schema_file = schema_file.resolve()
+    mtimes = tuple(p.stat().st_mtime_ns for p in sorted(schema_file.parent.glob("*.yaml")))
+    validator = _validator(schema_file, mtimes)
     errors = sorted(validator.iter_errors(cfg), key=lambda e: list(map(str, e.absolute_path)))
     leaf = []
     for err in errors:
