@@ -32,6 +32,19 @@ _STATUS_TEXT = {
 _WALL_NAMES = {K.LEFT_WALL: "left wall", K.RIGHT_WALL: "right wall", K.BOTTOM_WALL: "bottom wall"}
 
 
+_STORAGE = (
+    "vec", "sca", "ivec", "walls", "pair_start", "pair_ij", "pair_c", "pair_xi",
+    "old_start", "old_j", "old_xi", "buf", "touch", "cell_count", "cell_start",
+    "clock", "counters",
+)  # fmt: skip
+"""Storage arrays every stepping kernel takes, in its argument order."""
+
+
+def _storage(s: dict) -> tuple:
+    """The arrays of a state's storage dict in kernel argument order (:data:`_STORAGE`)."""
+    return tuple(s[k] for k in _STORAGE)
+
+
 class Ensemble:
     """R replicas of a system with the same number of disks, stacked on a leading axis.
 
@@ -609,23 +622,7 @@ class Simulation:
             wd,
             fw,
             skin,
-            s["vec"],
-            s["sca"],
-            s["ivec"],
-            s["walls"],
-            s["pair_start"],
-            s["pair_ij"],
-            s["pair_c"],
-            s["pair_xi"],
-            s["old_start"],
-            s["old_j"],
-            s["old_xi"],
-            s["buf"],
-            s["touch"],
-            s["cell_count"],
-            s["cell_start"],
-            s["clock"],
-            s["counters"],
+            *_storage(s),
             self.dt,
             s["info"],
         )
@@ -785,23 +782,7 @@ class Simulation:
                 wd,
                 fw,
                 skin,
-                s["vec"],
-                s["sca"],
-                s["ivec"],
-                s["walls"],
-                s["pair_start"],
-                s["pair_ij"],
-                s["pair_c"],
-                s["pair_xi"],
-                s["old_start"],
-                s["old_j"],
-                s["old_xi"],
-                s["buf"],
-                s["touch"],
-                s["cell_count"],
-                s["cell_start"],
-                s["clock"],
-                s["counters"],
+                *_storage(s),
                 speed,
                 s["info"],
             )
