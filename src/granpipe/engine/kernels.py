@@ -247,19 +247,19 @@ def _kick_drift(vec, sca, dt, thr, spin_on, tangent):
     v = _flat(vec[VEL])
     f = _flat(vec[FRC])
     im = _flat(vec[IM2])
+    b = _flat(vec[POS_BUILD])
     h = 0.5 * dt
+    thr2 = thr * thr
     for k in range(p.shape[0]):
         w = v[k] + h * (f[k] * im[k])
         v[k] = w
         p[k] = p[k] + dt * w
-    pos = vec[POS]
-    b = vec[POS_BUILD]
-    thr2 = thr * thr
-    moved = False
-    for i in range(pos.shape[0]):
-        dx = pos[i, 0] - b[i, 0]
-        dy = pos[i, 1] - b[i, 1]
-        moved |= dx * dx + dy * dy > thr2
+    # flat arrays and an integer count (not a boolean or): the loop vectorises
+    moved = 0
+    for i in range(p.shape[0] // 2):
+        dx = p[2 * i] - b[2 * i]
+        dy = p[2 * i + 1] - b[2 * i + 1]
+        moved += 1 if dx * dx + dy * dy > thr2 else 0
     if spin_on:
         spin = sca[SPIN]
         trq = sca[TORQUE]
@@ -274,22 +274,32 @@ def _kick_drift(vec, sca, dt, thr, spin_on, tangent):
             w = tv[k] + h * (tf[k] * im[k])
             tv[k] = w
             tr[k] = tr[k] + dt * w
-    return moved
+    return moved > 0
 
 
 @njit
-def _final_kick(vec, sca, dt, spin_on):
-    """Second half kick; returns (sum |v|² over mobile disks, non-finite flag)."""
+def _final_kick(vec, sca, dt, spin_on, want_v2):
+    """Second half kick; returns (sum |v|² over mobile disks if ``want_v2``, non-finite flag)."""
     v = _flat(vec[VEL])
     f = _flat(vec[FRC])
     im = _flat(vec[IM2])
     mob = _flat(vec[MOB2])
     h = 0.5 * dt
-    bad = False
+    bad = 0
     for k in range(v.shape[0]):
         w = v[k] + h * (f[k] * im[k])
         v[k] = w
-        bad |= not (abs(w) < _BIG)
+        bad += 0 if abs(w) < _BIG else 1
+    if spin_on:
+        spin = sca[SPIN]
+        trq = sca[TORQUE]
+        inv_i = sca[INV_INERTIA]
+        for i in range(spin.shape[0]):
+            w = spin[i] + h * (trq[i] * inv_i[i])
+            spin[i] = w
+            bad += 0 if abs(w) < _BIG else 1
+    if not want_v2:
+        return 0.0, bad > 0
     # four partial sums: a fixed order (reproducible) that does not serialise on one add
     s0 = 0.0
     s1 = 0.0
@@ -303,15 +313,7 @@ def _final_kick(vec, sca, dt, spin_on):
         s3 += v[k + 3] * v[k + 3] * mob[k + 3]
     for k in range(m, v.shape[0]):
         s0 += v[k] * v[k] * mob[k]
-    if spin_on:
-        spin = sca[SPIN]
-        trq = sca[TORQUE]
-        inv_i = sca[INV_INERTIA]
-        for i in range(spin.shape[0]):
-            w = spin[i] + h * (trq[i] * inv_i[i])
-            spin[i] = w
-            bad |= not (abs(w) < _BIG)
-    return (s0 + s1) + (s2 + s3), bad
+    return (s0 + s1) + (s2 + s3), bad > 0
 
 
 @njit
@@ -608,14 +610,18 @@ def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, 
     """Add the pair forces (and perturbations, torques) to the disks; with ``recount``, count
     each disk's touching pairs into ``PAIR_CONTACTS``.
 
-    Row by row of the half list: the owner's sums stay in registers (rows share ``i``, so
-    adding to memory pair by pair would chain store-to-load forwarding).
+    One flat pass over the half list (no short inner loops whose exits mispredict): the
+    partner's sums go to memory pair by pair, the owner's stay in registers until its row
+    ends (consecutive pairs share the owner, and adding to its memory pair by pair would
+    chain store-to-load forwarding). Every disk's sum runs in the order of the list.
     """
     f = _flat(vec[FRC])
     mg = _flat(vec[MG])
     for k in range(f.shape[0]):
         f[k] = mg[k]
     n = pair_start.shape[0] - 1
+    npairs = pair_start[n]
+    pi = pair_ij[PI]
     pj = pair_ij[PJ]
     fx = buf[B_FX]
     fy = buf[B_FY]
@@ -623,81 +629,94 @@ def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, 
     g1 = buf[B_G1]
     two = np.uint32(2)
     one = np.uint32(1)
+    tf = _flat(vec[T_FRC])
+    trq = sca[TORQUE]
     if tangent:
-        tf = _flat(vec[T_FRC])
         for k in range(tf.shape[0]):
             tf[k] = 0.0
+    if torques:
         for i in range(n):
-            k0 = pair_start[i]
-            k1 = pair_start[i + 1]
-            if k0 == k1:
-                continue
-            ax = 0.0
-            ay = 0.0
-            bx = 0.0
-            by = 0.0
-            for k in range(k0, k1):
+            trq[i] = 0.0
+    if npairs > 0:
+        prev = pi[0]
+        ax = 0.0
+        ay = 0.0
+        bx = 0.0
+        by = 0.0
+        if tangent:
+            for k in range(npairs):
+                i = pi[k]
                 j2 = two * pj[k]
                 a = fx[k]
                 b = fy[k]
-                ax += a
-                ay += b
+                c = g0[k]
+                d = g1[k]
                 f[j2] -= a
                 f[j2 + one] -= b
-                a = g0[k]
-                b = g1[k]
-                bx += a
-                by += b
-                tf[j2] -= a
-                tf[j2 + one] -= b
-            f[2 * i] += ax
-            f[2 * i + 1] += ay
-            tf[2 * i] += bx
-            tf[2 * i + 1] += by
-    elif torques:
-        trq = sca[TORQUE]
-        for i in range(n):
-            trq[i] = 0.0
-        for i in range(n):
-            k0 = pair_start[i]
-            k1 = pair_start[i + 1]
-            if k0 == k1:
-                continue
-            ax = 0.0
-            ay = 0.0
-            ti = 0.0
-            for k in range(k0, k1):
+                tf[j2] -= c
+                tf[j2 + one] -= d
+                if i != prev:
+                    p2 = two * prev
+                    f[p2] += ax
+                    f[p2 + one] += ay
+                    tf[p2] += bx
+                    tf[p2 + one] += by
+                    ax = 0.0
+                    ay = 0.0
+                    bx = 0.0
+                    by = 0.0
+                ax += a
+                ay += b
+                bx += c
+                by += d
+                prev = i
+            p2 = two * prev
+            tf[p2] += bx
+            tf[p2 + one] += by
+        elif torques:
+            for k in range(npairs):
+                i = pi[k]
                 j = pj[k]
                 j2 = two * j
                 a = fx[k]
                 b = fy[k]
-                ax += a
-                ay += b
+                c = g0[k]
                 f[j2] -= a
                 f[j2 + one] -= b
-                ti += g0[k]
                 trq[j] += g1[k]
-            f[2 * i] += ax
-            f[2 * i + 1] += ay
-            trq[i] += ti
-    else:
-        for i in range(n):
-            k0 = pair_start[i]
-            k1 = pair_start[i + 1]
-            if k0 == k1:
-                continue
-            ax = 0.0
-            ay = 0.0
-            for k in range(k0, k1):
+                if i != prev:
+                    p2 = two * prev
+                    f[p2] += ax
+                    f[p2 + one] += ay
+                    trq[prev] += bx
+                    ax = 0.0
+                    ay = 0.0
+                    bx = 0.0
+                ax += a
+                ay += b
+                bx += c
+                prev = i
+            trq[prev] += bx
+        else:
+            for k in range(npairs):
+                i = pi[k]
                 j2 = two * pj[k]
                 a = fx[k]
                 b = fy[k]
-                ax += a
-                ay += b
                 f[j2] -= a
                 f[j2 + one] -= b
-            f[2 * i] += ax
-            f[2 * i + 1] += ay
+                if i != prev:
+                    p2 = two * prev
+                    f[p2] += ax
+                    f[p2 + one] += ay
+                    ax = 0.0
+                    ay = 0.0
+                ax += a
+                ay += b
+                prev = i
+        p2 = two * prev
+        f[p2] += ax
+        f[p2 + one] += ay
     if recount:
         pc = ivec[PAIR_CONTACTS]
         for i in range(n):
@@ -1281,7 +1300,7 @@ def _drum_replica(
             return info[0]
         counters[CONTACT_SUM] += ncon
         counters[STEPS_RUN] += 1
-        v2, bad = _final_kick(vec, sca, dt, False)
+        v2, bad = _final_kick(vec, sca, dt, False, stride > 0)
         if bad:
             return _fail(info, NONFINITE, _first_nonfinite(vec, sca), -1, step)
         if tangent:
@@ -1393,7 +1412,7 @@ def _box_replica(
             return info[0]
         counters[CONTACT_SUM] += ncon
         counters[STEPS_RUN] += 1
-        v2, bad = _final_kick(vec, sca, dt, True)
+        v2, bad = _final_kick(vec, sca, dt, True, stride > 0)
         if bad:
             return _fail(info, NONFINITE, _first_nonfinite(vec, sca), -1, step)
         if stride > 0:
