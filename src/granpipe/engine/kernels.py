@@ -347,12 +347,16 @@ def _tangent_kick(vec, sca, ivec, dt, info, step, counters):
     num = 0.0
     den = 0.0
     total = 0.0
+    a = _flat(tr)
+    b = _flat(tv)
+    d = _flat(tf)
+    m = _flat(im)
+    for k in range(b.shape[0]):
+        b[k] = b[k] + h * (d[k] * m[k])
     for i in range(n):
-        wx = tv[i, 0] + h * (tf[i, 0] * im[i, 0])
-        wy = tv[i, 1] + h * (tf[i, 1] * im[i, 1])
-        tv[i, 0] = wx
-        tv[i, 1] = wy
-        q = (tr[i, 0] * tr[i, 0] + tr[i, 1] * tr[i, 1] + wx * wx + wy * wy) * mob[i, 0]
+        x = 2 * i
+        y = x + 1
+        q = (a[x] * a[x] + a[y] * a[y] + b[x] * b[x] + b[y] * b[y]) * mob[i, 0]
         s = contacts[i] >= 2
         num += q if s else 0.0
         den += prev[i] if s else 0.0
@@ -369,9 +373,6 @@ def _tangent_kick(vec, sca, ivec, dt, info, step, counters):
         e = max(e, int(math.ceil(0.5 * math.log2(total))) - 450)
         c = math.ldexp(1.0, -e)
         c2 = c * c
-        a = _flat(tr)
-        b = _flat(tv)
-        d = _flat(tf)
         for k in range(a.shape[0]):
             a[k] *= c
             b[k] *= c
@@ -416,6 +417,7 @@ def _gather(vec, sca, pair_ij, buf, npairs, mode):
         ey = buf[B_E1]
         evx = buf[B_E2]
         evy = buf[B_E3]
+        # two loops of four rows each: one loop of eight runs out of registers
         for k in range(npairs):
             i2 = two * pi[k]
             j2 = two * pj[k]
@@ -423,6 +425,9 @@ def _gather(vec, sca, pair_ij, buf, npairs, mode):
             dy[k] = p[i2 + one] - p[j2 + one]
             dvx[k] = v[i2] - v[j2]
             dvy[k] = v[i2 + one] - v[j2 + one]
+        for k in range(npairs):
+            i2 = two * pi[k]
+            j2 = two * pj[k]
             ex[k] = tr[i2] - tr[j2]
             ey[k] = tr[i2 + one] - tr[j2 + one]
             evx[k] = tv[i2] - tv[j2]
@@ -432,16 +437,15 @@ def _gather(vec, sca, pair_ij, buf, npairs, mode):
         wi = buf[B_E0]
         wj = buf[B_E1]
         for k in range(npairs):
-            i = pi[k]
-            j = pj[k]
-            i2 = two * i
-            j2 = two * j
+            i2 = two * pi[k]
+            j2 = two * pj[k]
             dx[k] = p[i2] - p[j2]
             dy[k] = p[i2 + one] - p[j2 + one]
             dvx[k] = v[i2] - v[j2]
             dvy[k] = v[i2 + one] - v[j2 + one]
-            wi[k] = spin[i]
-            wj[k] = spin[j]
+        for k in range(npairs):
+            wi[k] = spin[pi[k]]
+            wj[k] = spin[pj[k]]
 
 
 @njit
@@ -721,13 +725,19 @@ def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, 
         pc = ivec[PAIR_CONTACTS]
         for i in range(n):
             pc[i] = 0
-        for i in range(n):
+        if npairs > 0:
+            prev = pi[0]
             ci = 0
-            for k in range(pair_start[i], pair_start[i + 1]):
+            for k in range(npairs):
+                i = pi[k]
                 c = touch[k]
-                ci += c
                 pc[pj[k]] += c
-            pc[i] += ci
+                if i != prev:
+                    pc[prev] += ci
+                    ci = 0
+                ci += c
+                prev = i
+            pc[prev] += ci
 
 
 @njit
@@ -866,25 +876,37 @@ def _wall_gap(w, pos, i, fw, zb):
 
 
 @njit
-def _wall_candidates(w, vec, sca, fw, zb, xi_w, reset, out):
-    """Mobile disks touching flat wall ``w``, listed in ``out``; returns how many.
+def _wall_candidates(vec, sca, fw, zb, reset, out):
+    """Mobile disks touching at least one flat wall, listed in ``out``; returns how many.
 
-    With ``reset``, the shear history of the other disks is zeroed. Most disks touch no
-    wall, so the branch is well predicted and the contact loops only see the listed disks.
+    One pass over the disks for all three walls (an absent wall sits at infinity). With
+    ``reset``, the shear history against each wall (``sca[XI_LEFT + w]``) of the disks
+    not touching it is zeroed. Most disks touch no wall, so the branch is well
+    predicted and the contact loops only see the listed disks.
     """
-    pos = vec[POS]
-    mob = vec[MOB2]
+    p = _flat(vec[POS])
+    mob = _flat(vec[MOB2])
     radius = sca[RADIUS]
-    n = pos.shape[0]
+    xi_l = sca[XI_LEFT]
+    xi_r = sca[XI_RIGHT]
+    xi_b = sca[XI_BOTTOM]
+    x_left = fw[1] if fw[0] != 0.0 else -_BIG
+    x_right = fw[3] if fw[2] != 0.0 else _BIG
+    z_bottom = zb if fw[4] != 0.0 else -_BIG
     m = 0
-    col = 0 if w < 2 else 1
-    ref = fw[1] if w == 0 else (fw[3] if w == 1 else zb)
-    sgn = -1.0 if w == 1 else 1.0
-    for i in range(n):
-        t = (sgn * (pos[i, col] - ref) <= radius[i]) & (mob[i, 0] != 0.0)
+    for i in range(radius.shape[0]):
+        x = p[2 * i]
+        y = p[2 * i + 1]
+        a = radius[i]
+        on = mob[2 * i] != 0.0
+        t_l = (x - x_left <= a) & on
+        t_r = (x_right - x <= a) & on
+        t_b = (y - z_bottom <= a) & on
         if reset:
-            xi_w[i] = xi_w[i] if t else 0.0
-        if t:
+            xi_l[i] = xi_l[i] if t_l else 0.0
+            xi_r[i] = xi_r[i] if t_r else 0.0
+            xi_b[i] = xi_b[i] if t_b else 0.0
+        if t_l | t_r | t_b:
             out[m] = i
             m += 1
     return m
@@ -906,23 +928,24 @@ def _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step
     g_t = law[2]
     mu = law[3]
     ncon = 0
-    for w in range(3):
-        if fw[2 * w] == 0.0:
-            continue
-        cand = ivec[CELL_OF]  # scratch between list builds
-        m = _wall_candidates(w, vec, sca, fw, zb, sca[T_PREV], False, cand)
-        nx = 1.0 if w == 0 else (-1.0 if w == 1 else 0.0)
-        ny = 1.0 if w == 2 else 0.0
-        wv = vb if w == 2 else 0.0
-        for q in range(m):
-            i = cand[q]
-            ai = radius[i]
+    cand = ivec[CELL_OF]  # scratch between list builds
+    m = _wall_candidates(vec, sca, fw, zb, False, cand)
+    for q in range(m):
+        i = cand[q]
+        ai = radius[i]
+        for w in range(3):
+            if fw[2 * w] == 0.0:
+                continue
             delta = _wall_gap(w, pos, i, fw, zb) - ai
+            if delta > 0.0:
+                continue
             if -delta > 0.5 * ai:
                 _fail(info, DEEP_OVERLAP, i, -1 - w, step)
                 return -1
+            nx = 1.0 if w == 0 else (-1.0 if w == 1 else 0.0)
+            ny = 1.0 if w == 2 else 0.0
             vx = vel[i, 0]
-            vy = vel[i, 1] - wv
+            vy = vel[i, 1] - (vb if w == 2 else 0.0)
             fx, fy, f_n, f_t, regime = drum_force(nx, ny, delta, vx, vy, k_n, g_n, g_t, mu)
             frc[i, 0] += fx
             frc[i, 1] += fy
@@ -965,23 +988,23 @@ def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
     trq = sca[TORQUE]
     contacts = ivec[CONTACTS]
     ncon = 0
-    for w in range(3):
-        if fw[2 * w] == 0.0:
-            continue
-        xi_w = sca[XI_LEFT + w]
-        cand = ivec[CELL_OF]  # scratch between list builds
-        m = _wall_candidates(w, vec, sca, fw, zb, xi_w, True, cand)
-        nx = 1.0 if w == 0 else (-1.0 if w == 1 else 0.0)
-        ny = 1.0 if w == 2 else 0.0
-        wv = vb if w == 2 else 0.0
-        mu_w = law[5] if w == 2 else law[6]
-        for q in range(m):
-            i = cand[q]
-            ai = radius[i]
+    cand = ivec[CELL_OF]  # scratch between list builds
+    m = _wall_candidates(vec, sca, fw, zb, True, cand)
+    for q in range(m):
+        i = cand[q]
+        ai = radius[i]
+        for w in range(3):
+            if fw[2 * w] == 0.0:
+                continue
             overlap = ai - _wall_gap(w, pos, i, fw, zb)
+            if overlap < 0.0:
+                continue
             if overlap > 0.5 * ai:
                 _fail(info, DEEP_OVERLAP, i, -1 - w, step)
                 return -1
+            xi_w = sca[XI_LEFT + w]
+            nx = 1.0 if w == 0 else (-1.0 if w == 1 else 0.0)
+            ny = 1.0 if w == 2 else 0.0
             fx, fy, tau_i, tau_j, xi_new, f_n, f_t, slip = box_force(
                 nx,
                 ny,
@@ -989,7 +1012,7 @@ def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
                 ai - 0.5 * overlap,
                 0.0,
                 vel[i, 0],
-                vel[i, 1] - wv,
+                vel[i, 1] - (vb if w == 2 else 0.0),
                 spin[i],
                 0.0,
                 1.0 / inv_mass[i],
@@ -999,7 +1022,7 @@ def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
                 law[1],
                 law[2],
                 law[3],
-                mu_w,
+                law[5] if w == 2 else law[6],
             )
             xi_w[i] = xi_new
             frc[i, 0] += fx
