@@ -43,6 +43,7 @@ lint: env
 
 bench: env
 	$(BIN)/python benchmarks/engine.py
+	$(BIN)/python benchmarks/engine_passes.py
 
 report: env
 	$(BIN)/snakemake --cores $(CORES) --report results/report.zip

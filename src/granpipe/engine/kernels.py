@@ -26,14 +26,17 @@ The tangent step is the exact linearization of this discrete map (drum law):
 no perturbation), ``dv = dw + (dt/2) dF/m``; ``(dr, dv, dF)`` is carried between
 steps exactly as ``(r, v, F)`` is.
 
-Performance layout (measured on the drum pile, see benchmarks/engine.py): the pair
-forces run in three passes over the flat pair list — gather the relative
-coordinates into contiguous buffers, evaluate the contact law on them (a loop LLVM
-vectorises: the law leaves are written with selects only), scatter the forces —
-because LLVM does not emit hardware gathers on this CPU and the fused scalar loop
-is latency bound. The per-disk passes work on flat ``2N`` arrays and reduce
-flags with ``|=`` so that they vectorise too; bad states are located only after a
-flag is raised.
+Performance layout (measured on the drum pile and the box crystal with
+``benchmarks/engine_passes.py``): the pair forces run in three passes over the flat
+pair list — gather the relative coordinates into contiguous buffers (loops of at most
+four rows: eight run out of registers and spill), evaluate the contact law on them (a
+loop LLVM vectorises: the law leaves are written with selects only), scatter the
+forces — because LLVM does not emit hardware gathers on this CPU and the fused scalar
+loop is latency bound. The scatter is one flat pass too: short per-disk inner loops
+mispredict their exits (that cost more than the arithmetic), and the owner's sums stay
+in registers until its row ends. The per-disk passes work on flat ``2N`` arrays and
+reduce flags by integer counts so that they vectorise; bad states are located only
+after a flag is raised. Flat-wall contacts are found in one pass for all walls.
 """
 
 from __future__ import annotations
