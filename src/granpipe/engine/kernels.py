@@ -879,6 +879,20 @@ def _wall_gap(w, pos, i, fw, zb):
 
 
 @njit
+def _wall_overlap(w, pos, i, fw, zb, ai):
+    """Overlap ``a_i - gap`` of disk ``i`` with flat wall ``w``; negative if apart or absent."""
+    if fw[2 * w] == 0.0:
+        return -1.0
+    return ai - _wall_gap(w, pos, i, fw, zb)
+
+
+@njit
+def _wall_normal(w):
+    """Unit normal of flat wall ``w`` pointing into the box."""
+    return (1.0 if w == 0 else (-1.0 if w == 1 else 0.0)), (1.0 if w == 2 else 0.0)
+
+
+@njit
 def _wall_candidates(vec, sca, fw, zb, reset, out):
     """Mobile disks touching at least one flat wall, listed in ``out``; returns how many.
 
@@ -937,16 +951,14 @@ def _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step
         i = cand[q]
         ai = radius[i]
         for w in range(3):
-            if fw[2 * w] == 0.0:
+            overlap = _wall_overlap(w, pos, i, fw, zb, ai)
+            if overlap < 0.0:
                 continue
-            delta = _wall_gap(w, pos, i, fw, zb) - ai
-            if delta > 0.0:
-                continue
-            if -delta > 0.5 * ai:
+            if overlap > 0.5 * ai:
                 _fail(info, DEEP_OVERLAP, i, -1 - w, step)
                 return -1
-            nx = 1.0 if w == 0 else (-1.0 if w == 1 else 0.0)
-            ny = 1.0 if w == 2 else 0.0
+            delta = -overlap
+            nx, ny = _wall_normal(w)
             vx = vel[i, 0]
             vy = vel[i, 1] - (vb if w == 2 else 0.0)
             fx, fy, f_n, f_t, regime = drum_force(nx, ny, delta, vx, vy, k_n, g_n, g_t, mu)
@@ -997,17 +1009,14 @@ def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
         i = cand[q]
         ai = radius[i]
         for w in range(3):
-            if fw[2 * w] == 0.0:
-                continue
-            overlap = ai - _wall_gap(w, pos, i, fw, zb)
+            overlap = _wall_overlap(w, pos, i, fw, zb, ai)
             if overlap < 0.0:
                 continue
             if overlap > 0.5 * ai:
                 _fail(info, DEEP_OVERLAP, i, -1 - w, step)
                 return -1
             xi_w = sca[XI_LEFT + w]
-            nx = 1.0 if w == 0 else (-1.0 if w == 1 else 0.0)
-            ny = 1.0 if w == 2 else 0.0
+            nx, ny = _wall_normal(w)
             fx, fy, tau_i, tau_j, xi_new, f_n, f_t, slip = box_force(
                 nx,
                 ny,
