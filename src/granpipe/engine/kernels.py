@@ -49,11 +49,16 @@ from numba import prange as numba_prange
 from granpipe._jit import njit, pnjit
 from granpipe.engine.laws import box_force, drum_force, drum_force_jvp
 from granpipe.engine.neighbours import build_pairs, carry_history
+from granpipe.engine.simd import sub4_rows
 from granpipe.engine.walls import bottom_height, bottom_velocity, wall_omega
 
 # rows of vec (NV, N, 2)
 POS, VEL, FRC, POS_BUILD, WALL_REF, T_POS, T_VEL, T_FRC, IM2, MOB2, MG = range(11)
-NV = 11
+# two rows each, read as one flat (4N,) array of per-disk records (see :func:`_records`):
+# [x, y, vx, vy] and [ex, ey, evx, evy], copied from the rows above before a gather
+XV = 11
+XT = 13
+NV = 15
 # rows of sca (NS, N)
 RADIUS, INV_MASS, INV_INERTIA, SPIN, TORQUE, T_PREV, XI_LEFT, XI_RIGHT, XI_BOTTOM = range(9)
 NS = 9
@@ -104,6 +109,28 @@ def _fail(info, status, particle, other, step):
 def _flat(a):
     """A (N, 2) C-contiguous array as a flat (2N,) view."""
     return a.reshape(a.size)
+
+
+@njit
+def _records(vec, row):
+    """Rows ``row, row + 1`` of ``vec`` (NV, N, 2) as one flat (4N,) array of records."""
+    return vec[row : row + 2].reshape(4 * vec.shape[1])
+
+
+@njit
+def _write_records(vec, tangent):
+    """Copy positions and velocities (and the tangent vector) into the per-disk records."""
+    for src_p, src_v, dst in ((POS, VEL, XV), (T_POS, T_VEL, XT)):
+        if dst == XT and not tangent:
+            break
+        p = _flat(vec[src_p])
+        v = _flat(vec[src_v])
+        r = _records(vec, dst)
+        for i in range(p.shape[0] // 2):
+            r[4 * i] = p[2 * i]
+            r[4 * i + 1] = p[2 * i + 1]
+            r[4 * i + 2] = v[2 * i]
+            r[4 * i + 3] = v[2 * i + 1]
 
 
 # --------------------------------------------------------------------------- walls, list
@@ -394,58 +421,25 @@ def _gather(vec, sca, pair_ij, buf, npairs, mode):
     """Relative positions and velocities of every listed pair into contiguous rows.
 
     ``mode`` 1 adds the tangent-vector differences (drum tangent), 2 the two spins (box).
+    One 4-wide subtraction per pair and record from the per-disk records, written first
+    (:func:`granpipe.engine.simd.sub4_rows`, bit-identical to the scalar subtraction).
     """
-    p = _flat(vec[POS])
-    v = _flat(vec[VEL])
-    pi = pair_ij[0]
-    pj = pair_ij[1]
-    dx = buf[B_DX]
-    dy = buf[B_DY]
-    dvx = buf[B_DVX]
-    dvy = buf[B_DVY]
-    two = np.uint32(2)
-    one = np.uint32(1)
-    if mode == 0:
+    _write_records(vec, mode == 1)
+    pi = pair_ij[PI]
+    pj = pair_ij[PJ]
+    cap = buf.shape[1]
+    rows = buf.reshape(buf.size)
+    xv = _records(vec, XV)
+    for k in range(npairs):
+        sub4_rows(rows, B_DX * cap + k, cap, xv, 4 * np.intp(pi[k]), 4 * np.intp(pj[k]))
+    if mode == 1:
+        xt = _records(vec, XT)
         for k in range(npairs):
-            i2 = two * pi[k]
-            j2 = two * pj[k]
-            dx[k] = p[i2] - p[j2]
-            dy[k] = p[i2 + one] - p[j2 + one]
-            dvx[k] = v[i2] - v[j2]
-            dvy[k] = v[i2 + one] - v[j2 + one]
-    elif mode == 1:
-        tr = _flat(vec[T_POS])
-        tv = _flat(vec[T_VEL])
-        ex = buf[B_E0]
-        ey = buf[B_E1]
-        evx = buf[B_E2]
-        evy = buf[B_E3]
-        # two loops of four rows each: one loop of eight runs out of registers
-        for k in range(npairs):
-            i2 = two * pi[k]
-            j2 = two * pj[k]
-            dx[k] = p[i2] - p[j2]
-            dy[k] = p[i2 + one] - p[j2 + one]
-            dvx[k] = v[i2] - v[j2]
-            dvy[k] = v[i2 + one] - v[j2 + one]
-        for k in range(npairs):
-            i2 = two * pi[k]
-            j2 = two * pj[k]
-            ex[k] = tr[i2] - tr[j2]
-            ey[k] = tr[i2 + one] - tr[j2 + one]
-            evx[k] = tv[i2] - tv[j2]
-            evy[k] = tv[i2 + one] - tv[j2 + one]
-    else:
+            sub4_rows(rows, B_E0 * cap + k, cap, xt, 4 * np.intp(pi[k]), 4 * np.intp(pj[k]))
+    elif mode == 2:
         spin = sca[SPIN]
         wi = buf[B_E0]
         wj = buf[B_E1]
-        for k in range(npairs):
-            i2 = two * pi[k]
-            j2 = two * pj[k]
-            dx[k] = p[i2] - p[j2]
-            dy[k] = p[i2 + one] - p[j2 + one]
-            dvx[k] = v[i2] - v[j2]
-            dvy[k] = v[i2 + one] - v[j2 + one]
         for k in range(npairs):
             wi[k] = spin[pi[k]]
             wj[k] = spin[pj[k]]

@@ -125,7 +125,7 @@ class Ensemble:
     def from_arrays(arrays):
         """Rebuild a :class:`State` or :class:`Ensemble` saved by :meth:`to_arrays`."""
         fmt = int(np.asarray(arrays.get("engine_format", -1)))
-        if fmt != _FORMAT:
+        if fmt not in (2, _FORMAT):
             raise ConfigError(f"engine state format {fmt} is not {_FORMAT}; rerun to regenerate")
         storage = {}
         for key, val in arrays.items():
@@ -142,6 +142,11 @@ class Ensemble:
                 storage[key] = tuple(float(c) for c in a)
             else:
                 storage[key] = np.ascontiguousarray(a).copy()
+        if fmt == 2:
+            # format 2 had no per-disk record rows; they are rewritten before every gather
+            vec = storage["vec"]
+            pad = np.zeros((vec.shape[0], K.NV - vec.shape[1]) + vec.shape[2:])
+            storage["vec"] = np.ascontiguousarray(np.concatenate([vec, pad], axis=1))
         cls = State if bool(np.asarray(arrays["single"])) else Ensemble
         return cls(storage)
 
@@ -330,7 +335,7 @@ def _pad(arr, width):
     return out
 
 
-_FORMAT = 2
+_FORMAT = 3
 
 
 @dataclass(frozen=True)
