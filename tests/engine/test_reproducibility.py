@@ -145,14 +145,15 @@ def test_saved_and_restored_state_continues_bit_identically(kind, tmp_path):
 
 
 def test_state_saved_before_the_record_rows_continues_bit_identically():
-    """A state saved in engine format 2 (no per-disk record rows in ``vec``) loads and
-    continues exactly as the state it was saved from: the rows are scratch, rewritten
-    before every gather."""
+    """A state saved in engine format 2 (no per-disk record rows in ``vec``, one-byte touch
+    flags) loads and continues exactly as the state it was saved from: the rows are
+    scratch, rewritten before every gather."""
     sim, a = drum_state(5)
     sim.run(a, 300, tangent=True)
     old = a.to_arrays()
     old["engine_format"] = np.asarray(2)
     old["vec"] = old["vec"][:, : K.XV]
+    old["touch"] = old["touch"].astype(np.uint8)
     b = State.from_arrays(old)
     assert b._s["vec"].shape == a._s["vec"].shape
     sim.run(a, 300, tangent=True)

@@ -459,7 +459,7 @@ def _drum_pairs(buf, ssum, slim, touch, law, npairs):
     fxa = buf[B_FX]
     fya = buf[B_FY]
     ncon = 0
-    bad = False
+    nbad = 0
     for k in range(npairs):
         dx = dxa[k]
         dy = dya[k]
@@ -476,8 +476,8 @@ def _drum_pairs(buf, ssum, slim, touch, law, npairs):
         fya[k] = fy if t else 0.0
         touch[k] = 1 if t else 0
         ncon += 1 if t else 0
-        bad |= -delta > slim[k]
-    return ncon, bad
+        nbad += 1 if -delta > slim[k] else 0
+    return ncon, nbad > 0
 
 
 @njit
@@ -500,8 +500,8 @@ def _drum_pairs_tangent(buf, ssum, slim, touch, law, npairs):
     gxa = buf[B_G0]
     gya = buf[B_G1]
     ncon = 0
-    bad = False
-    changed = False
+    nbad = 0
+    nchanged = 0
     for k in range(npairs):
         dx = dxa[k]
         dy = dya[k]
@@ -539,11 +539,11 @@ def _drum_pairs_tangent(buf, ssum, slim, touch, law, npairs):
         gxa[k] = gx if t else 0.0
         gya[k] = gy if t else 0.0
         c = 1 if t else 0
-        changed |= touch[k] != c
+        nchanged += 1 if touch[k] != c else 0
         touch[k] = c
         ncon += c
-        bad |= -delta > slim[k]
-    return ncon, bad, changed
+        nbad += 1 if -delta > slim[k] else 0
+    return ncon, nbad > 0, nchanged > 0
 
 
 @njit
@@ -565,7 +565,7 @@ def _box_pairs(buf, ssum, slim, smeff, sdiff, pair_xi, touch, law, dt_hist, npai
     tia = buf[B_G0]
     tja = buf[B_G1]
     ncon = 0
-    bad = False
+    nbad = 0
     for k in range(npairs):
         dx = dxa[k]
         dy = dya[k]
@@ -602,8 +602,8 @@ def _box_pairs(buf, ssum, slim, smeff, sdiff, pair_xi, touch, law, dt_hist, npai
         pair_xi[k] = xi_new if t else 0.0
         touch[k] = 1 if t else 0
         ncon += 1 if t else 0
-        bad |= overlap > slim[k]
-    return ncon, bad
+        nbad += 1 if overlap > slim[k] else 0
+    return ncon, nbad > 0
 
 
 @njit

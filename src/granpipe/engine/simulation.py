@@ -143,10 +143,12 @@ class Ensemble:
             else:
                 storage[key] = np.ascontiguousarray(a).copy()
         if fmt == 2:
-            # format 2 had no per-disk record rows; they are rewritten before every gather
+            # format 2 had no per-disk record rows (scratch, rewritten before every gather)
+            # and one-byte touch flags (64-bit now: the law passes then need no packing)
             vec = storage["vec"]
             pad = np.zeros((vec.shape[0], K.NV - vec.shape[1]) + vec.shape[2:])
             storage["vec"] = np.ascontiguousarray(np.concatenate([vec, pad], axis=1))
+            storage["touch"] = storage["touch"].astype(np.int64)
         cls = State if bool(np.asarray(arrays["single"])) else Ensemble
         return cls(storage)
 
@@ -545,7 +547,7 @@ class Simulation:
             "old_j": np.zeros((r_count, cap), dtype=np.uint32),
             "old_xi": np.zeros((r_count, cap)),
             "buf": np.zeros((r_count, K.NB, cap)),
-            "touch": np.zeros((r_count, cap), dtype=np.uint8),
+            "touch": np.zeros((r_count, cap), dtype=np.int64),
             "cell_count": np.zeros((r_count, ccap + 1), dtype=np.int64),
             "cell_start": np.zeros((r_count, ccap + 1), dtype=np.int64),
             "clock": clock,
