@@ -1,13 +1,13 @@
 """Explicit 4-wide vector operations for the pair gathers (numba intrinsics).
 
-LLVM does not vectorise the gathers of :mod:`granpipe.engine.kernels` (the pair indices
-are data; numba leaves LLVM's SLP vectoriser off by default since it miscompiled code,
-numba issue #8705), so a scalar gather costs eight loads, four subtractions and four
-stores per pair. With the per-disk records stored as four consecutive doubles
-(``[x, y, vx, vy]``), :func:`sub4` does the same as one ``<4 x double>`` load from each
-disk, one subtraction and one store: measured on the drum pile, 0.9 instead of 2.0 ns
-per pair (``benchmarks/engine_passes.py``). The arithmetic is the IEEE subtraction of
-the scalar code, lane by lane, so results are bit-identical to it.
+LLVM does not vectorise the gathers of :mod:`granpipe.engine.kernels` (the
+pair indices are data, and numba leaves LLVM's SLP vectoriser off by default since it
+miscompiled code, numba issue #8705), so a scalar gather costs eight loads, four
+subtractions and four stores per pair. With the per-disk records stored as four
+consecutive doubles (``[x, y, vx, vy]``), :func:`sub4_rows` does one ``<4 x double>``
+load from each disk and one subtraction: measured on the drum pile, 0.9 instead of 2.0
+ns per pair (``benchmarks/engine_passes.py``). Lane by lane the arithmetic is the IEEE
+arithmetic of the scalar code, so results are bit-identical to it.
 """
 
 from __future__ import annotations
@@ -16,38 +16,7 @@ from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic
 
-__all__ = ["sub4"]
-
-
-@intrinsic
-def sub4(typingctx, dst, k, src, i, j):
-    """``dst[k:k+4] = src[i:i+4] - src[j:j+4]`` as one 4-wide vector operation.
-
-    ``dst`` and ``src`` are 1-d C-contiguous float64 arrays; ``k``, ``i``, ``j`` integer
-    offsets (no bounds check: the callers index records of four inside the arrays).
-    """
-    for arg in (dst, src):
-        if not (isinstance(arg, types.Array) and arg.ndim == 1 and arg.dtype == types.float64):
-            return None
-    sig = types.void(dst, k, src, i, j)
-
-    def codegen(context, builder, signature, args):
-        dst_v, k_v, src_v, i_v, j_v = args
-        tys = signature.args
-        d = context.make_array(tys[0])(context, builder, dst_v)
-        s = context.make_array(tys[2])(context, builder, src_v)
-        vptr = ir.VectorType(ir.DoubleType(), 4).as_pointer()
-
-        def at(ary, idx, ty):
-            idx = context.cast(builder, idx, ty, types.intp)
-            return builder.bitcast(builder.gep(ary.data, [idx]), vptr)
-
-        a = builder.load(at(s, i_v, tys[3]), align=8)
-        b = builder.load(at(s, j_v, tys[4]), align=8)
-        builder.store(builder.fsub(a, b), at(d, k_v, tys[1]), align=8)
-        return context.get_dummy_value()
-
-    return sig, codegen
+__all__ = ["sub4_rows"]
 
 
 @intrinsic
