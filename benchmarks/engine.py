@@ -20,7 +20,10 @@ files to rebuild them). The last line is one JSON object:
 ``{"drum_forward_ns", "drum_tangent_ns", "box_driven_ns", "box_dense_ns"}`` (medians).
 
 For scale (issue 3): LAMMPS GRANULAR on one core of a 2-core machine takes about
-110 (drum), 38 (driven box) and 100 (dense crystal) ns per particle-step.
+110 (drum), 38 (driven box) and 100 (dense crystal) ns per particle-step. On a shared
+virtual machine, other guests' load shows as CPU time too (``steal``): compare versions
+by interleaved runs. ``benchmarks/engine_passes.py`` breaks a step down by pass;
+docs/engine_performance.md records the figures and what bounds them.
 """
 
 from __future__ import annotations
