@@ -887,14 +887,16 @@ def _wall_normal(w):
 
 
 @njit
-def _wall_candidates(vec, sca, fw, zb, reset, out):
-    """Mobile disks touching at least one flat wall, listed in ``out``; returns how many.
+def _wall_candidates(vec, sca, fw, zb, reset, out, info, step):
+    """Mobile disks touching at least one flat wall, listed in ``out``; returns how many,
+    or -1 (recorded in ``info``) if one overlaps a wall by more than half its radius.
 
     One pass over the disks for all three walls (an absent wall sits at infinity). With
     ``reset``, the shear history against each wall (``sca[XI_LEFT + w]``) of the disks
     not touching it is zeroed. Most disks touch no wall, so the branch is well
     predicted and the contact loops only see the listed disks.
     """
+    pos = vec[POS]
     p = _flat(vec[POS])
     mob = _flat(vec[MOB2])
     radius = sca[RADIUS]
@@ -918,6 +920,10 @@ def _wall_candidates(vec, sca, fw, zb, reset, out):
             xi_r[i] = xi_r[i] if t_r else 0.0
             xi_b[i] = xi_b[i] if t_b else 0.0
         if t_l | t_r | t_b:
+            for w in range(3):
+                if _wall_overlap(w, pos, i, fw, zb, a) > 0.5 * a:
+                    _fail(info, DEEP_OVERLAP, i, -1 - w, step)
+                    return -1
             out[m] = i
             m += 1
     return m
@@ -940,7 +946,9 @@ def _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step
     mu = law[3]
     ncon = 0
     cand = ivec[CELL_OF]  # scratch between list builds
-    m = _wall_candidates(vec, sca, fw, zb, False, cand)
+    m = _wall_candidates(vec, sca, fw, zb, False, cand, info, step)
+    if m < 0:
+        return -1
     for q in range(m):
         i = cand[q]
         ai = radius[i]
@@ -948,9 +956,6 @@ def _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step
             overlap = _wall_overlap(w, pos, i, fw, zb, ai)
             if overlap < 0.0:
                 continue
-            if overlap > 0.5 * ai:
-                _fail(info, DEEP_OVERLAP, i, -1 - w, step)
-                return -1
             delta = -overlap
             nx, ny = _wall_normal(w)
             vx = vel[i, 0]
@@ -998,7 +1003,9 @@ def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
     contacts = ivec[CONTACTS]
     ncon = 0
     cand = ivec[CELL_OF]  # scratch between list builds
-    m = _wall_candidates(vec, sca, fw, zb, True, cand)
+    m = _wall_candidates(vec, sca, fw, zb, True, cand, info, step)
+    if m < 0:
+        return -1
     for q in range(m):
         i = cand[q]
         ai = radius[i]
@@ -1006,9 +1013,6 @@ def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
             overlap = _wall_overlap(w, pos, i, fw, zb, ai)
             if overlap < 0.0:
                 continue
-            if overlap > 0.5 * ai:
-                _fail(info, DEEP_OVERLAP, i, -1 - w, step)
-                return -1
             xi_w = sca[XI_LEFT + w]
             nx, ny = _wall_normal(w)
             fx, fy, tau_i, tau_j, xi_new, f_n, f_t, slip = box_force(

@@ -1,13 +1,17 @@
 """Explicit 4-wide vector operations for the pair gathers (numba intrinsics).
 
-LLVM does not vectorise the gathers of :mod:`granpipe.engine.kernels` (the
-pair indices are data, and numba leaves LLVM's SLP vectoriser off by default since it
-miscompiled code, numba issue #8705), so a scalar gather costs eight loads, four
-subtractions and four stores per pair. With the per-disk records stored as four
+LLVM does not vectorise the gathers of :mod:`granpipe.engine.kernels` (the pair indices
+are data, and numba leaves LLVM's SLP vectoriser off by default since it miscompiled
+code: numba PR #8852, issues #8705 and #8681), so a scalar gather costs eight loads,
+four subtractions and four stores per pair. With the per-disk records stored as four
 consecutive doubles (``[x, y, vx, vy]``), :func:`sub4_rows` does one ``<4 x double>``
-load from each disk and one subtraction: measured on the drum pile, 0.9 instead of 2.0
-ns per pair (``benchmarks/engine_passes.py``). Lane by lane the arithmetic is the IEEE
-arithmetic of the scalar code, so results are bit-identical to it.
+load from each disk and one subtraction (0.9 ns per pair on the drum pile alone; with
+the copy into the records, the gather takes 1.7 instead of 2.0 ns per pair, and 2.7
+instead of 4.3 with the tangent vector: ``benchmarks/engine_passes.py``). Lane by lane
+the arithmetic is the IEEE arithmetic of the scalar code, so results are bit-identical.
+
+Numba's on-disk cache keys a kernel on its own source file only: after editing this
+module, delete ``src/granpipe/engine/__pycache__`` so that the kernels are recompiled.
 """
 
 from __future__ import annotations
