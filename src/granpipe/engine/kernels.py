@@ -1248,33 +1248,35 @@ def _box_forces(
 
 
 @njit
+def _at(st, r):
+    """Replica ``r`` of the storage tuple ``st``: the arrays of
+    :data:`granpipe.engine.simulation._STORAGE` (``vec, sca, ivec, walls, pair_start,
+    pair_ij, pair_c, pair_xi, old_start, old_j, old_xi, buf, touch, cell_count,
+    cell_start, clock, counters``), each with a leading replica axis."""
+    return (
+        st[0][r],
+        st[1][r],
+        st[2][r],
+        st[3][r],
+        st[4][r],
+        st[5][r],
+        st[6][r],
+        st[7][r],
+        st[8][r],
+        st[9][r],
+        st[10][r],
+        st[11][r],
+        st[12][r],
+        st[13][r],
+        st[14][r],
+        st[15][r],
+        st[16][r],
+    )
+
+
+@njit
 def _drum_replica(
-    n_steps,
-    stride,
-    tangent,
-    dt,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_ij,
-    pair_c,
-    buf,
-    touch,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    out_lam,
-    out_nlam,
-    out_speed,
-    info,
+    n_steps, stride, tangent, dt, g, law, wd, fw, skin, st, out_lam, out_nlam, out_speed, info
 ):
     """Advance one replica ``n_steps`` under the drum law (optionally with its tangent vector).
 
@@ -1282,6 +1284,10 @@ def _drum_replica(
     growth rate over non-rattlers; only steps where it is defined count, ``out_nlam``
     says how many) and of ``V = sqrt(sum |v|²)``. Returns the status code.
     """
+    # fmt: off
+    (vec, sca, ivec, walls, pair_start, pair_ij, pair_c, _pair_xi, _old_start,
+     _old_j, _old_xi, buf, touch, cell_count, cell_start, clock, counters) = st
+    # fmt: on
     half_skin = 0.5 * skin
     _set_gravity(vec, sca, g[0], g[1])
     lam_sum = 0.0
@@ -1361,36 +1367,12 @@ def _drum_replica(
 
 
 @njit
-def _box_replica(
-    n_steps,
-    stride,
-    dt,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_ij,
-    pair_c,
-    pair_xi,
-    old_start,
-    old_j,
-    old_xi,
-    buf,
-    touch,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    out_speed,
-    info,
-):
+def _box_replica(n_steps, stride, dt, g, law, wd, fw, skin, st, out_speed, info):
     """Advance one replica ``n_steps`` under the box law; block means of ``V`` if ``stride``."""
+    # fmt: off
+    (vec, sca, ivec, walls, pair_start, pair_ij, pair_c, pair_xi, old_start,
+     old_j, old_xi, buf, touch, cell_count, cell_start, clock, counters) = st
+    # fmt: on
     half_skin = 0.5 * skin
     _set_gravity(vec, sca, g[0], g[1])
     v_sum = 0.0
@@ -1465,35 +1447,7 @@ def _box_replica(
 
 
 @njit
-def _refresh_replica(
-    law_id,
-    tangent,
-    rebuild,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_ij,
-    pair_c,
-    pair_xi,
-    old_start,
-    old_j,
-    old_xi,
-    buf,
-    touch,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    dt,
-    info,
-):
+def _refresh_replica(law_id, tangent, rebuild, g, law, wd, fw, skin, st, dt, info):
     """Place the walls, rebuild the list and evaluate forces at the current state.
 
     Uses full-step velocities and wall velocities at the current time; the shear history is
@@ -1501,6 +1455,10 @@ def _refresh_replica(
     Without ``rebuild`` the walls and the list stay as they are (setting a tangent vector:
     the caller keeps the forces and takes only their perturbation).
     """
+    # fmt: off
+    (vec, sca, ivec, walls, pair_start, pair_ij, pair_c, pair_xi, old_start,
+     old_j, old_xi, buf, touch, cell_count, cell_start, clock, counters) = st
+    # fmt: on
     t = _time(clock, counters, dt)
     n_walls = counters[N_WALLS]
     if n_walls > 0 and rebuild:
@@ -1609,35 +1567,10 @@ def _refresh_replica(
 
 @njit
 def drum_run_serial(
-    n_steps,
-    stride,
-    tangent,
-    dt,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_ij,
-    pair_c,
-    buf,
-    touch,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    out_lam,
-    out_nlam,
-    out_speed,
-    info,
+    n_steps, stride, tangent, dt, g, law, wd, fw, skin, st, out_lam, out_nlam, out_speed, info
 ):
     """Drum law over replicas one after another (arrays with a leading replica axis)."""
-    for r in range(vec.shape[0]):
+    for r in range(info.shape[0]):
         _drum_replica(
             n_steps,
             stride,
@@ -1648,19 +1581,7 @@ def drum_run_serial(
             wd,
             fw,
             skin,
-            vec[r],
-            sca[r],
-            ivec[r],
-            walls[r],
-            pair_start[r],
-            pair_ij[r],
-            pair_c[r],
-            buf[r],
-            touch[r],
-            cell_count[r],
-            cell_start[r],
-            clock[r],
-            counters[r],
+            _at(st, r),
             out_lam[r],
             out_nlam[r],
             out_speed[r],
@@ -1670,35 +1591,10 @@ def drum_run_serial(
 
 @pnjit
 def drum_run_parallel(
-    n_steps,
-    stride,
-    tangent,
-    dt,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_ij,
-    pair_c,
-    buf,
-    touch,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    out_lam,
-    out_nlam,
-    out_speed,
-    info,
+    n_steps, stride, tangent, dt, g, law, wd, fw, skin, st, out_lam, out_nlam, out_speed, info
 ):
     """Drum law over replicas under ``prange`` (each iteration writes only its replica)."""
-    for r in numba_prange(vec.shape[0]):
+    for r in numba_prange(info.shape[0]):
         _drum_replica(
             n_steps,
             stride,
@@ -1709,19 +1605,7 @@ def drum_run_parallel(
             wd,
             fw,
             skin,
-            vec[r],
-            sca[r],
-            ivec[r],
-            walls[r],
-            pair_start[r],
-            pair_ij[r],
-            pair_c[r],
-            buf[r],
-            touch[r],
-            cell_count[r],
-            cell_start[r],
-            clock[r],
-            counters[r],
+            _at(st, r),
             out_lam[r],
             out_nlam[r],
             out_speed[r],
@@ -1730,37 +1614,9 @@ def drum_run_parallel(
 
 
 @njit
-def box_run_serial(
-    n_steps,
-    stride,
-    dt,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_ij,
-    pair_c,
-    pair_xi,
-    old_start,
-    old_j,
-    old_xi,
-    buf,
-    touch,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    out_speed,
-    info,
-):
+def box_run_serial(n_steps, stride, dt, g, law, wd, fw, skin, st, out_speed, info):
     """Box law over replicas one after another."""
-    for r in range(vec.shape[0]):
+    for r in range(info.shape[0]):
         _box_replica(
             n_steps,
             stride,
@@ -1770,60 +1626,16 @@ def box_run_serial(
             wd,
             fw,
             skin,
-            vec[r],
-            sca[r],
-            ivec[r],
-            walls[r],
-            pair_start[r],
-            pair_ij[r],
-            pair_c[r],
-            pair_xi[r],
-            old_start[r],
-            old_j[r],
-            old_xi[r],
-            buf[r],
-            touch[r],
-            cell_count[r],
-            cell_start[r],
-            clock[r],
-            counters[r],
+            _at(st, r),
             out_speed[r],
             info[r],
         )
 
 
 @pnjit
-def box_run_parallel(
-    n_steps,
-    stride,
-    dt,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_ij,
-    pair_c,
-    pair_xi,
-    old_start,
-    old_j,
-    old_xi,
-    buf,
-    touch,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    out_speed,
-    info,
-):
+def box_run_parallel(n_steps, stride, dt, g, law, wd, fw, skin, st, out_speed, info):
     """Box law over replicas under ``prange``."""
-    for r in numba_prange(vec.shape[0]):
+    for r in numba_prange(info.shape[0]):
         _box_replica(
             n_steps,
             stride,
@@ -1833,60 +1645,16 @@ def box_run_parallel(
             wd,
             fw,
             skin,
-            vec[r],
-            sca[r],
-            ivec[r],
-            walls[r],
-            pair_start[r],
-            pair_ij[r],
-            pair_c[r],
-            pair_xi[r],
-            old_start[r],
-            old_j[r],
-            old_xi[r],
-            buf[r],
-            touch[r],
-            cell_count[r],
-            cell_start[r],
-            clock[r],
-            counters[r],
+            _at(st, r),
             out_speed[r],
             info[r],
         )
 
 
 @njit
-def refresh_serial(
-    law_id,
-    tangent,
-    rebuild,
-    g,
-    law,
-    wd,
-    fw,
-    skin,
-    vec,
-    sca,
-    ivec,
-    walls,
-    pair_start,
-    pair_ij,
-    pair_c,
-    pair_xi,
-    old_start,
-    old_j,
-    old_xi,
-    buf,
-    touch,
-    cell_count,
-    cell_start,
-    clock,
-    counters,
-    dt,
-    info,
-):
+def refresh_serial(law_id, tangent, rebuild, g, law, wd, fw, skin, st, dt, info):
     """:func:`_refresh_replica` over replicas."""
-    for r in range(vec.shape[0]):
+    for r in range(info.shape[0]):
         _refresh_replica(
             law_id,
             tangent,
@@ -1896,23 +1664,7 @@ def refresh_serial(
             wd,
             fw,
             skin,
-            vec[r],
-            sca[r],
-            ivec[r],
-            walls[r],
-            pair_start[r],
-            pair_ij[r],
-            pair_c[r],
-            pair_xi[r],
-            old_start[r],
-            old_j[r],
-            old_xi[r],
-            buf[r],
-            touch[r],
-            cell_count[r],
-            cell_start[r],
-            clock[r],
-            counters[r],
+            _at(st, r),
             dt,
             info[r],
         )

@@ -37,11 +37,12 @@ _STORAGE = (
     "old_start", "old_j", "old_xi", "buf", "touch", "cell_count", "cell_start",
     "clock", "counters",
 )  # fmt: skip
-"""Storage arrays every stepping kernel takes, in its argument order."""
+"""Storage arrays every stepping kernel takes, as one tuple in this order (:func:`_storage`)."""
 
 
 def _storage(s: dict) -> tuple:
-    """The arrays of a state's storage dict in kernel argument order (:data:`_STORAGE`)."""
+    """The arrays of a state's storage dict as the tuple every stepping kernel takes
+    (:data:`_STORAGE` order; ``kernels._at`` picks one replica of it)."""
     return tuple(s[k] for k in _STORAGE)
 
 
@@ -629,7 +630,7 @@ class Simulation:
             wd,
             fw,
             skin,
-            *_storage(s),
+            _storage(s),
             self.dt,
             s["info"],
         )
@@ -759,19 +760,7 @@ class Simulation:
                 wd,
                 fw,
                 skin,
-                s["vec"],
-                s["sca"],
-                s["ivec"],
-                s["walls"],
-                s["pair_start"],
-                s["pair_ij"],
-                s["pair_c"],
-                s["buf"],
-                s["touch"],
-                s["cell_count"],
-                s["cell_start"],
-                s["clock"],
-                s["counters"],
+                _storage(s),
                 lam,
                 nlam,
                 speed,
@@ -789,7 +778,7 @@ class Simulation:
                 wd,
                 fw,
                 skin,
-                *_storage(s),
+                _storage(s),
                 speed,
                 s["info"],
             )
