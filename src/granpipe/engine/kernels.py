@@ -47,7 +47,7 @@ import numpy as np
 from numba import prange as numba_prange
 
 from granpipe._jit import njit, pnjit
-from granpipe.engine.laws import box_force, drum_force, drum_force_jvp
+from granpipe.engine.laws import box_force, box_wall_force, drum_force, drum_force_jvp
 from granpipe.engine.neighbours import build_pairs, carry_history
 from granpipe.engine.simd import sub4_rows
 from granpipe.engine.walls import bottom_height, bottom_velocity, wall_omega
@@ -1015,16 +1015,14 @@ def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
                 continue
             xi_w = sca[XI_LEFT + w]
             nx, ny = _wall_normal(w)
-            fx, fy, tau_i, tau_j, xi_new, f_n, f_t, slip = box_force(
+            fx, fy, tau_i, tau_j, xi_new, f_n, f_t, slip = box_wall_force(
                 nx,
                 ny,
                 overlap,
-                ai - 0.5 * overlap,
-                0.0,
+                ai,
                 vel[i, 0],
                 vel[i, 1] - (vb if w == 2 else 0.0),
                 spin[i],
-                0.0,
                 1.0 / inv_mass[i],
                 xi_w[i],
                 dt_hist,

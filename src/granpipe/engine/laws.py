@@ -48,6 +48,7 @@ __all__ = [
     "drum_force",
     "drum_force_jvp",
     "box_force",
+    "box_wall_force",
     "box_force_jvp",
 ]
 
@@ -208,6 +209,36 @@ def box_force(
     fx = f_n * nx - f_t * ny
     fy = f_n * ny + f_t * nx
     return fx, fy, -lever_i * f_t, -lever_j * f_t, xi_new, f_n, f_t, slip
+
+
+@njit
+def box_wall_force(
+    nx, ny, overlap, radius, vx, vy, w, mass, xi, dt, kappa_n, kappa_t, gamma_n, gamma_t, mu
+):
+    """:func:`box_force` against a flat wall: the wall's side infinitely heavy and not
+    turning (``m_eff`` = the disk's mass, no spin), the lever arm ``radius - overlap/2``
+    (the contact point mid-overlap). Same arguments and returns as :func:`box_force`,
+    with ``(vx, vy)`` the disk's velocity relative to the wall and ``w`` its spin.
+    """
+    return box_force(
+        nx,
+        ny,
+        overlap,
+        radius - 0.5 * overlap,
+        0.0,
+        vx,
+        vy,
+        w,
+        0.0,
+        mass,
+        xi,
+        dt,
+        kappa_n,
+        kappa_t,
+        gamma_n,
+        gamma_t,
+        mu,
+    )
 
 
 @njit
@@ -535,24 +566,9 @@ class BoxLaw:
         if overlap < 0:
             return np.zeros(2), 0.0, 0.0
         p = self.params()
-        fx, fy, ti, _, xi_new, *_ = box_force(
-            n[0],
-            n[1],
-            overlap,
-            radius - 0.5 * overlap,
-            0.0,
-            v[0],
-            v[1],
-            spin,
-            0.0,
-            mass,
-            xi,
-            dt,
-            p[0],
-            p[1],
-            p[2],
-            p[3],
-            self.mu_w if mu is None else mu,
+        mu_w = self.mu_w if mu is None else mu
+        fx, fy, ti, _, xi_new, *_ = box_wall_force(
+            n[0], n[1], overlap, radius, v[0], v[1], spin, mass, xi, dt, *p[:4], mu_w
         )
         return np.array([fx, fy]), ti, xi_new
 
@@ -563,24 +579,8 @@ class BoxLaw:
         p = self.params()
         mu_w = self.mu_w if mu is None else mu
         lev = radius - 0.5 * overlap
-        out = box_force(
-            n[0],
-            n[1],
-            overlap,
-            lev,
-            0.0,
-            v[0],
-            v[1],
-            spin,
-            0.0,
-            mass,
-            xi,
-            dt,
-            p[0],
-            p[1],
-            p[2],
-            p[3],
-            mu_w,
+        out = box_wall_force(
+            n[0], n[1], overlap, radius, v[0], v[1], spin, mass, xi, dt, *p[:4], mu_w
         )
         f_n, f_t, slip = out[5], out[6], out[7]
         jac = np.zeros((3, 4))
