@@ -97,7 +97,7 @@ def _tangent_kick(nrep, vec, sca, ivec, info, counters):
 @njit
 def _box_walls(nrep, vec, sca, ivec, law, fw, info):
     for _ in range(nrep):
-        K._box_flat_walls(vec, sca, ivec, law, fw, 0.0, 0.0, 0.0, False, info, 0)
+        K._flat_walls(1, vec, sca, ivec, law, fw, 0.0, 0.0, False, 0.0, False, info, 0)
 
 
 @njit

@@ -930,8 +930,11 @@ def _wall_candidates(vec, sca, fw, zb, reset, out, info, step):
 
 
 @njit
-def _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step):
-    """Drum-law contacts with the flat walls. Returns the contact count, or -1 (bad)."""
+def _flat_walls(law_id, vec, sca, ivec, law, fw, zb, vb, tangent, dt_hist, count, info, step):
+    """Contacts of the disks with the flat walls under the drum law (``law_id`` 0, with the
+    tangent perturbation if ``tangent``) or the box law (1: per-disk shear histories
+    advanced by ``dt_hist``, torques). Returns the contact count, or -1 (bad state).
+    """
     pos = vec[POS]
     vel = vec[VEL]
     frc = vec[FRC]
@@ -939,71 +942,13 @@ def _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step
     tv = vec[T_VEL]
     tf = vec[T_FRC]
     radius = sca[RADIUS]
-    contacts = ivec[CONTACTS]
-    k_n = law[0]
-    g_n = law[1]
-    g_t = law[2]
-    mu = law[3]
-    ncon = 0
-    cand = ivec[CELL_OF]  # scratch between list builds
-    m = _wall_candidates(vec, sca, fw, zb, False, cand, info, step)
-    if m < 0:
-        return -1
-    for q in range(m):
-        i = cand[q]
-        ai = radius[i]
-        for w in range(3):
-            overlap = _wall_overlap(w, pos, i, fw, zb, ai)
-            if overlap < 0.0:
-                continue
-            delta = -overlap
-            nx, ny = _wall_normal(w)
-            vx = vel[i, 0]
-            vy = vel[i, 1] - (vb if w == 2 else 0.0)
-            fx, fy, f_n, f_t, regime = drum_force(nx, ny, delta, vx, vy, k_n, g_n, g_t, mu)
-            frc[i, 0] += fx
-            frc[i, 1] += fy
-            ncon += 1
-            if count:
-                contacts[i] += 1
-            if tangent:
-                dfx, dfy = drum_force_jvp(
-                    nx,
-                    ny,
-                    0.0,
-                    vx,
-                    vy,
-                    f_n,
-                    f_t,
-                    regime,
-                    tr[i, 0],
-                    tr[i, 1],
-                    tv[i, 0],
-                    tv[i, 1],
-                    k_n,
-                    g_n,
-                    g_t,
-                    mu,
-                )
-                tf[i, 0] += dfx
-                tf[i, 1] += dfy
-    return ncon
-
-
-@njit
-def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step):
-    """Box-law contacts with the flat walls (per-disk histories). Returns count or -1."""
-    pos = vec[POS]
-    vel = vec[VEL]
-    frc = vec[FRC]
-    radius = sca[RADIUS]
     inv_mass = sca[INV_MASS]
     spin = sca[SPIN]
     trq = sca[TORQUE]
     contacts = ivec[CONTACTS]
     ncon = 0
     cand = ivec[CELL_OF]  # scratch between list builds
-    m = _wall_candidates(vec, sca, fw, zb, True, cand, info, step)
+    m = _wall_candidates(vec, sca, fw, zb, law_id == 1, cand, info, step)
     if m < 0:
         return -1
     for q in range(m):
@@ -1013,29 +958,57 @@ def _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
             overlap = _wall_overlap(w, pos, i, fw, zb, ai)
             if overlap < 0.0:
                 continue
-            xi_w = sca[XI_LEFT + w]
             nx, ny = _wall_normal(w)
-            fx, fy, tau_i, tau_j, xi_new, f_n, f_t, slip = box_wall_force(
-                nx,
-                ny,
-                overlap,
-                ai,
-                vel[i, 0],
-                vel[i, 1] - (vb if w == 2 else 0.0),
-                spin[i],
-                1.0 / inv_mass[i],
-                xi_w[i],
-                dt_hist,
-                law[0],
-                law[1],
-                law[2],
-                law[3],
-                law[5] if w == 2 else law[6],
-            )
-            xi_w[i] = xi_new
+            vx = vel[i, 0]
+            vy = vel[i, 1] - (vb if w == 2 else 0.0)
+            if law_id == 0:
+                fx, fy, f_n, f_t, regime = drum_force(
+                    nx, ny, -overlap, vx, vy, law[0], law[1], law[2], law[3]
+                )
+                if tangent:
+                    dfx, dfy = drum_force_jvp(
+                        nx,
+                        ny,
+                        0.0,
+                        vx,
+                        vy,
+                        f_n,
+                        f_t,
+                        regime,
+                        tr[i, 0],
+                        tr[i, 1],
+                        tv[i, 0],
+                        tv[i, 1],
+                        law[0],
+                        law[1],
+                        law[2],
+                        law[3],
+                    )
+                    tf[i, 0] += dfx
+                    tf[i, 1] += dfy
+            else:
+                xi_w = sca[XI_LEFT + w]
+                fx, fy, tau_i, tau_j, xi_new, f_n, f_t, slip = box_wall_force(
+                    nx,
+                    ny,
+                    overlap,
+                    ai,
+                    vx,
+                    vy,
+                    spin[i],
+                    1.0 / inv_mass[i],
+                    xi_w[i],
+                    dt_hist,
+                    law[0],
+                    law[1],
+                    law[2],
+                    law[3],
+                    law[5] if w == 2 else law[6],
+                )
+                xi_w[i] = xi_new
+                trq[i] += tau_i
             frc[i, 0] += fx
             frc[i, 1] += fy
-            trq[i] += tau_i
             ncon += 1
             if count:
                 contacts[i] += 1
@@ -1178,7 +1151,7 @@ def _drum_forces(
     _contact_counts_done(ivec, counters, count, recount, compact)
     counters[LAST_PAIR_CONTACTS] = ncon
     if _has_flat(fw):
-        nw = _drum_flat_walls(vec, sca, ivec, law, fw, zb, vb, tangent, count, info, step)
+        nw = _flat_walls(0, vec, sca, ivec, law, fw, zb, vb, tangent, 0.0, count, info, step)
         if nw < 0:
             return -1
         ncon += nw
@@ -1238,7 +1211,7 @@ def _box_forces(
     _contact_counts_done(ivec, counters, count, count, compact)
     counters[LAST_PAIR_CONTACTS] = ncon
     if _has_flat(fw):
-        nw = _box_flat_walls(vec, sca, ivec, law, fw, zb, vb, dt_hist, count, info, step)
+        nw = _flat_walls(1, vec, sca, ivec, law, fw, zb, vb, False, dt_hist, count, info, step)
         if nw < 0:
             return -1
         ncon += nw
