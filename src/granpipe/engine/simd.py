@@ -16,6 +16,10 @@ module, delete ``src/granpipe/engine/__pycache__`` so that the kernels are recom
 
 from __future__ import annotations
 
+import ast
+import inspect
+import textwrap
+
 from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic
@@ -56,3 +60,456 @@ def sub4_rows(typingctx, dst, k, stride, src, i, j):
         return context.get_dummy_value()
 
     return sig, codegen
+
+
+# --------------------------------------------------------------------------- lanes DSL
+
+_F64 = ir.DoubleType()
+_V4 = ir.VectorType(_F64, 4)
+_V2 = ir.VectorType(_F64, 2)
+_I64 = ir.IntType(64)
+_I32 = ir.IntType(32)
+
+
+class _Mask:
+    """Four lanes of a comparison result (``<4 x i1>``)."""
+
+    __slots__ = ("b", "v")
+
+    def __init__(self, b, v):
+        self.b = b
+        self.v = v
+
+    def __and__(self, o):
+        return _Mask(self.b, self.b.and_(self.v, o.v))
+
+    def __or__(self, o):
+        return _Mask(self.b, self.b.or_(self.v, o.v))
+
+    def __bool__(self):
+        raise TypeError("a contact law run on four lanes may not branch on a lane value")
+
+
+class _Lanes:
+    """Four float64 lanes (``<4 x double>``) with the IEEE arithmetic of Python floats."""
+
+    __slots__ = ("b", "v")
+
+    def __init__(self, b, v):
+        self.b = b
+        self.v = v
+
+    def _of(self, o):
+        if isinstance(o, _Lanes):
+            return o.v
+        if isinstance(o, (int, float)) and not isinstance(o, bool):
+            return ir.Constant(_V4, [float(o)] * 4)
+        raise TypeError(f"cannot combine four lanes with {type(o).__name__}")
+
+    def _op(self, name, a, c):
+        return _Lanes(self.b, getattr(self.b, name)(a, c))
+
+    def __add__(self, o):
+        return self._op("fadd", self.v, self._of(o))
+
+    def __radd__(self, o):
+        return self._op("fadd", self._of(o), self.v)
+
+    def __sub__(self, o):
+        return self._op("fsub", self.v, self._of(o))
+
+    def __rsub__(self, o):
+        return self._op("fsub", self._of(o), self.v)
+
+    def __mul__(self, o):
+        return self._op("fmul", self.v, self._of(o))
+
+    def __rmul__(self, o):
+        return self._op("fmul", self._of(o), self.v)
+
+    def __truediv__(self, o):
+        return self._op("fdiv", self.v, self._of(o))
+
+    def __rtruediv__(self, o):
+        return self._op("fdiv", self._of(o), self.v)
+
+    def __neg__(self):
+        return _Lanes(self.b, self.b.fneg(self.v))
+
+    def __abs__(self):
+        return _Lanes(self.b, _call(self.b, "llvm.fabs.v4f64", [self.v]))
+
+    def _cmp(self, op, o):
+        return _Mask(self.b, self.b.fcmp_ordered(op, self.v, self._of(o)))
+
+    def __lt__(self, o):
+        return self._cmp("<", o)
+
+    def __le__(self, o):
+        return self._cmp("<=", o)
+
+    def __gt__(self, o):
+        return self._cmp(">", o)
+
+    def __ge__(self, o):
+        return self._cmp(">=", o)
+
+    def __eq__(self, o):
+        return self._cmp("==", o)
+
+    __hash__ = None
+
+
+def _call(b, name, args):
+    fnty = ir.FunctionType(_V4, [_V4] * len(args))
+    fn = b.module.globals.get(name) or ir.Function(b.module, fnty, name=name)
+    return b.call(fn, args)
+
+
+def _select(c, a, x):
+    """``a if c else x`` on lanes (both sides are evaluated: the laws have no side effects)."""
+    if not isinstance(c, _Mask):
+        raise TypeError("a lane select needs a lane comparison")
+    ref = a if isinstance(a, _Lanes) else x
+    if not isinstance(ref, _Lanes):
+        ref = _Lanes(c.b, ir.Constant(_V4, [0.0] * 4))
+    return _Lanes(c.b, c.b.select(c.v, ref._of(a), ref._of(x)))
+
+
+def lanes_of(fn):
+    """The scalar law ``fn`` (a jitted leaf of :mod:`granpipe.engine.laws`) run on four lanes.
+
+    The leaf's own source is compiled again with each conditional expression ``a if c
+    else x`` turned into a lane select: the vector kernels evaluate the very expressions
+    of the scalar law, in the same order, so lane by lane they give the same bits.
+    """
+    py = getattr(fn, "py_func", fn)
+    tree = ast.parse(textwrap.dedent(inspect.getsource(py)))
+    fdef = tree.body[0]
+    fdef.decorator_list = []
+
+    class _IfExpToSelect(ast.NodeTransformer):
+        def visit_IfExp(self, node):
+            self.generic_visit(node)
+            call = ast.Call(
+                ast.Name("_select", ast.Load()), [node.test, node.body, node.orelse], []
+            )
+            return ast.copy_location(call, node)
+
+    tree = ast.fix_missing_locations(_IfExpToSelect().visit(tree))
+    ns = dict(py.__globals__)
+    ns["_select"] = _select
+    exec(compile(tree, inspect.getsourcefile(py), "exec"), ns)
+    return ns[fdef.name]
+
+
+# --------------------------------------------------------------------------- pair frames
+
+
+class _Frame:
+    """Code generation for four consecutive listed pairs ``k .. k+3`` inside an intrinsic.
+
+    ``full`` groups use vector loads and stores of the pair arrays; the last, partial
+    group (``nvalid < 4`` pairs) loads through clamped indices and stores lane by lane.
+    """
+
+    def __init__(self, context, builder, sig, args, names, full):
+        self.c = context
+        self.b = builder
+        self.full = full
+        self.a = {}
+        self.val = {}
+        for name, ty, val in zip(names, sig.args, args, strict=False):
+            if isinstance(ty, types.Array):
+                self.a[name] = context.make_array(ty)(context, builder, val)
+            else:
+                self.val[name] = context.cast(builder, val, ty, types.intp)
+        k = self.val["k"]
+        self.k = [builder.add(k, ir.Constant(_I64, lane)) for lane in range(4)]
+        if not full:
+            nv = self.val["nvalid"]
+            self.valid = [
+                builder.icmp_signed("<", ir.Constant(_I64, lane), nv) for lane in range(4)
+            ]
+            self.k = [builder.select(v, kl, k) for v, kl in zip(self.valid, self.k, strict=True)]
+
+    def ptr(self, name, idx):
+        return self.b.gep(self.a[name].data, [idx])
+
+    def scalar(self, name, idx):
+        return self.b.load(self.ptr(name, idx), align=8)
+
+    def index(self, name):
+        """The four pair indices ``name[k + lane]`` as i64."""
+        return [self.b.zext(self.scalar(name, kl), _I64) for kl in self.k]
+
+    def _at(self, off):
+        if off is None:
+            return self.k
+        return [self.b.add(kl, off) for kl in self.k]
+
+    def size(self, name):
+        """Length of the 1-D array argument ``name`` (i64)."""
+        return self.b.extract_value(self.a[name].shape, 0)
+
+    def row(self, r):
+        """Offset of row ``r`` of a flat (rows, cap) array (``cap`` an argument)."""
+        return self.b.mul(ir.Constant(_I64, r), self.val["cap"])
+
+    def lanes(self, name, off=None, elem=_F64):
+        """``name[off + k .. off + k+3]`` as four lanes."""
+        at = self._at(off)
+        vt = ir.VectorType(elem, 4)
+        if self.full:
+            p = self.b.bitcast(self.ptr(name, at[0]), vt.as_pointer())
+            v = self.b.load(p, align=8)
+        else:
+            v = ir.Constant(vt, ir.Undefined)
+            for lane, kl in enumerate(at):
+                v = self.b.insert_element(v, self.scalar(name, kl), ir.Constant(_I32, lane))
+        return _Lanes(self.b, v) if elem is _F64 else v
+
+    def splat(self, name, i):
+        x = self.scalar(name, ir.Constant(_I64, i))
+        v = self.b.insert_element(ir.Constant(_V4, ir.Undefined), x, ir.Constant(_I32, 0))
+        return _Lanes(
+            self.b, self.b.shuffle_vector(v, v, ir.Constant(ir.VectorType(_I32, 4), [0] * 4))
+        )
+
+    def record_diff(self, name, i, j):
+        """Records ``name[4i .. 4i+3] - name[4j .. 4j+3]`` of the four pairs, transposed into
+        four lanes per field (field f of pair lane l in lane l of the f-th result)."""
+        b = self.b
+        four = ir.Constant(_I64, 4)
+        d = []
+        for il, jl in zip(i, j, strict=True):
+            pa = b.bitcast(self.ptr(name, b.mul(il, four)), _V4.as_pointer())
+            pb = b.bitcast(self.ptr(name, b.mul(jl, four)), _V4.as_pointer())
+            d.append(b.fsub(b.load(pa, align=8), b.load(pb, align=8)))
+        return [_Lanes(b, v) for v in _transpose4(b, d)]
+
+    def mask_i64(self, m):
+        """A lane mask as ``<4 x i64>`` 0/1 (lanes past the last valid pair cleared)."""
+        v = m.v
+        if not self.full:
+            for lane in range(4):
+                at = ir.Constant(_I32, lane)
+                bit = self.b.and_(self.b.extract_element(v, at), self.valid[lane])
+                v = self.b.insert_element(v, bit, at)
+        return self.b.zext(v, ir.VectorType(_I64, 4))
+
+    def count(self, m64):
+        b = self.b
+        s = b.extract_element(m64, ir.Constant(_I32, 0))
+        for lane in range(1, 4):
+            s = b.add(s, b.extract_element(m64, ir.Constant(_I32, lane)))
+        return s
+
+    def store_lanes(self, name, v, off=None):
+        """``name[off + k .. off + k+3] = v`` (lanes or an integer vector)."""
+        b = self.b
+        at = self._at(off)
+        if isinstance(v, _Lanes):
+            v = v.v
+        if self.full:
+            b.store(v, b.bitcast(self.ptr(name, at[0]), v.type.as_pointer()), align=8)
+            return
+        for lane in range(4):
+            with b.if_then(self.valid[lane]):
+                b.store(
+                    b.extract_element(v, ir.Constant(_I32, lane)),
+                    self.ptr(name, at[lane]),
+                    align=8,
+                )
+
+    def scatter_pairs(self, i, j, prev, sums):
+        """Add pair vectors to per-disk (flat ``2N``) arrays, lane by lane in list order.
+
+        ``sums`` lists ``(name, x, y, acc)``: ``name[2j:2j+2] -= (x, y)`` goes to memory
+        at once; the owner's share is added to the running sum ``acc`` (``<2 x double>``)
+        of owner ``prev``, which goes to memory only when the owner changes (consecutive
+        pairs share the owner; adding each to memory would chain loads on stores). This is
+        the order of ``kernels._scatter``. Returns the new ``prev`` and sums.
+        """
+        b = self.b
+        m4 = ir.VectorType(_I32, 4)
+        two = ir.Constant(_I64, 2)
+        zero2 = ir.Constant(_V2, [0.0, 0.0])
+        halves = []
+        for _name, x, y, _acc in sums:
+            lo = b.shuffle_vector(x.v, y.v, ir.Constant(m4, [0, 4, 1, 5]))
+            hi = b.shuffle_vector(x.v, y.v, ir.Constant(m4, [2, 6, 3, 7]))
+            halves.append((lo, hi))
+        accs = [acc for _name, _x, _y, acc in sums]
+
+        def rmw(name, idx, op, x):
+            p = b.bitcast(self.ptr(name, b.mul(idx, two)), _V2.as_pointer())
+            b.store(getattr(b, op)(b.load(p, align=8), x), p, align=8)
+
+        for lane in range(4):
+            sel = ir.Constant(ir.VectorType(_I32, 2), [0, 1] if lane % 2 == 0 else [2, 3])
+            pairs = [b.shuffle_vector(h[lane // 2], h[lane // 2], sel) for h in halves]
+            new_owner = b.icmp_unsigned("!=", i[lane], prev)
+            if not self.full:
+                new_owner = b.and_(new_owner, self.valid[lane])
+            with b.if_then(new_owner):
+                for (name, *_), acc in zip(sums, accs, strict=True):
+                    rmw(name, prev, "fadd", acc)
+            summed = [
+                b.fadd(b.select(new_owner, zero2, acc), x)
+                for acc, x in zip(accs, pairs, strict=True)
+            ]
+            if self.full:
+                for (name, *_), x in zip(sums, pairs, strict=True):
+                    rmw(name, j[lane], "fsub", x)
+                accs = summed
+                prev = i[lane]
+            else:
+                with b.if_then(self.valid[lane]):
+                    for (name, *_), x in zip(sums, pairs, strict=True):
+                        rmw(name, j[lane], "fsub", x)
+                accs = [
+                    b.select(self.valid[lane], a, acc) for a, acc in zip(summed, accs, strict=True)
+                ]
+                prev = b.select(self.valid[lane], i[lane], prev)
+        return prev, accs
+
+
+def _transpose4(b, rows):
+    mask = ir.VectorType(_I32, 4)
+
+    def sh(x, y, m):
+        return b.shuffle_vector(x, y, ir.Constant(mask, m))
+
+    t0 = sh(rows[0], rows[1], [0, 4, 2, 6])
+    t1 = sh(rows[0], rows[1], [1, 5, 3, 7])
+    t2 = sh(rows[2], rows[3], [0, 4, 2, 6])
+    t3 = sh(rows[2], rows[3], [1, 5, 3, 7])
+    return [
+        sh(t0, t2, [0, 1, 4, 5]),
+        sh(t1, t3, [0, 1, 4, 5]),
+        sh(t0, t2, [2, 3, 6, 7]),
+        sh(t1, t3, [2, 3, 6, 7]),
+    ]
+
+
+def _sqrt(x):
+    return _Lanes(x.b, _call(x.b, "llvm.sqrt.v4f64", [x.v]))
+
+
+# rows of the pair buffer (kernels.B_*) through which the two halves of a pair pass talk
+_B_NX, _B_NY, _B_DVX, _B_DVY, _B_E0, _B_DELTA, _B_INV_R = 0, 1, 2, 3, 4, 8, 9
+
+_FRONT_ARGS = ("rec", "rect", "pi", "pj", "k", "nvalid", "ssum", "slim", "touch", "rows", "cap")
+
+
+def _pair_front4(full):
+    """Intrinsic ``(rec, rect, pi, pj, k, nvalid, ssum, slim, touch, rows, cap) -> code``:
+    the geometric half of a pair pass for the listed pairs ``k .. k+nvalid-1``.
+
+    From the per-disk records ``rec`` (flat ``4N``: ``x, y, vx, vy``) it forms the
+    relative position and velocity, ``r``, ``1/r``, the unit normal and ``delta = r -
+    (a_i + a_j)``, and writes them to rows of the flat pair buffer ``rows`` (row length
+    ``cap``) for :func:`_drum_back4`; with ``rect`` non-empty (the tangent records) also
+    the relative tangent vector. It stores the touch flags (``r² <= (a_i + a_j)²``) and
+    returns ``touching + 8 deep + 64 changed``: counts of touching pairs, of pairs
+    deeper than their bound ``slim`` and of touch flags that changed.
+    """
+
+    def typer(typingctx, rec, rect, pi, pj, k, nvalid, ssum, slim, touch, rows, cap):
+        sig = types.int64(rec, rect, pi, pj, k, nvalid, ssum, slim, touch, rows, cap)
+
+        def codegen(context, builder, signature, args):
+            fr = _Frame(context, builder, signature, args, _FRONT_ARGS, full)
+            i = fr.index("pi")
+            j = fr.index("pj")
+            dx, dy, dvx, dvy = fr.record_diff("rec", i, j)
+            s = fr.lanes("ssum")
+            lim = fr.lanes("slim")
+            r2 = dx * dx + dy * dy
+            r = _sqrt(r2)
+            inv_r = 1.0 / r
+            delta = r - s
+            t64 = fr.mask_i64(r2 <= s * s)
+            old = fr.lanes("touch", elem=_I64)
+            changed = fr.count(fr.mask_i64(_Mask(builder, builder.icmp_unsigned("!=", old, t64))))
+            fr.store_lanes("touch", t64)
+            bad = fr.count(fr.mask_i64(-delta > lim))
+            out = [(_B_NX, dx * inv_r), (_B_NY, dy * inv_r), (_B_DVX, dvx), (_B_DVY, dvy)]
+            out += [(_B_DELTA, delta), (_B_INV_R, inv_r)]
+            for row, v in out:
+                fr.store_lanes("rows", v, fr.row(row))
+            with builder.if_then(builder.icmp_signed(">", fr.size("rect"), ir.Constant(_I64, 0))):
+                for c, v in enumerate(fr.record_diff("rect", i, j)):
+                    fr.store_lanes("rows", v, fr.row(_B_E0 + c))
+            code = builder.add(fr.count(t64), builder.mul(bad, ir.Constant(_I64, 8)))
+            return builder.add(code, builder.mul(changed, ir.Constant(_I64, 64)))
+
+        return sig, codegen
+
+    return intrinsic(typer)
+
+
+_BACK_ARGS = ("rows", "cap", "k", "nvalid", "f", "tf", "pi", "pj", "touch", "law", "prev")
+
+
+def _drum_back4(full, tangent):
+    """Intrinsic ``(rows, cap, k, nvalid, f, tf, pi, pj, touch, law, prev, ax, ay, bx, by)
+    -> (prev, ax, ay, bx, by)``: the drum law (:func:`granpipe.engine.laws.drum_force`,
+    and with ``tangent`` its derivative ``drum_force_jvp`` along the tangent vector) on
+    the pairs ``k .. k+nvalid-1`` from the rows :func:`_pair_front4` wrote, zero where
+    the touch flag is off, added to the forces ``f`` (and perturbations ``tf``), flat
+    ``2N``. ``prev`` and the ``a``/``b`` pairs are the running owner sums of
+    :meth:`_Frame.scatter_pairs`; the caller starts them at the first owner and zero, and
+    adds the last sums to that owner's row when the pass ends.
+    """
+    from granpipe.engine.laws import drum_force, drum_force_jvp
+
+    force4 = lanes_of(drum_force)
+    jvp4 = lanes_of(drum_force_jvp)
+
+    def typer(typingctx, rows, cap, k, nvalid, f, tf, pi, pj, touch, law, prev, ax, ay, bx, by):
+        ret = types.Tuple((types.int64,) + (types.float64,) * 4)
+        sig = ret(rows, cap, k, nvalid, f, tf, pi, pj, touch, law, prev, ax, ay, bx, by)
+
+        def codegen(context, builder, signature, args):
+            fr = _Frame(context, builder, signature, args, _BACK_ARGS, full)
+            rows = (_B_NX, _B_NY, _B_DVX, _B_DVY, _B_DELTA, _B_INV_R)
+            nx, ny, dvx, dvy, delta, inv_r = (fr.lanes("rows", fr.row(r)) for r in rows)
+            par = [fr.splat("law", c) for c in range(4)]
+            fx, fy, f_n, f_t, regime = force4(nx, ny, delta, dvx, dvy, *par)
+            zero = ir.Constant(ir.VectorType(_I64, 4), [0] * 4)
+            t = _Mask(builder, builder.icmp_unsigned("!=", fr.lanes("touch", elem=_I64), zero))
+            sums = [("f", _select(t, fx, 0.0), _select(t, fy, 0.0))]
+            if tangent:
+                e = [fr.lanes("rows", fr.row(_B_E0 + c)) for c in range(4)]
+                gx, gy = jvp4(nx, ny, inv_r, dvx, dvy, f_n, f_t, regime, *e, *par)
+                sums.append(("tf", _select(t, gx, 0.0), _select(t, gy, 0.0)))
+            sums = [
+                (name, x, y, _pack2(builder, args[11 + 2 * q], args[12 + 2 * q]))
+                for q, (name, x, y) in enumerate(sums)
+            ]
+            i = fr.index("pi")
+            j = fr.index("pj")
+            prev, accs = fr.scatter_pairs(i, j, fr.val["prev"], sums)
+            out = [prev]
+            for acc in accs:
+                out += [builder.extract_element(acc, ir.Constant(_I32, c)) for c in range(2)]
+            return context.make_tuple(builder, ret, out + list(args[10 + len(out) :]))
+
+        return sig, codegen
+
+    return intrinsic(typer)
+
+
+def _pack2(b, x, y):
+    v = b.insert_element(ir.Constant(_V2, ir.Undefined), x, ir.Constant(_I32, 0))
+    return b.insert_element(v, y, ir.Constant(_I32, 1))
+
+
+pair_front4 = _pair_front4(True)
+pair_front4_tail = _pair_front4(False)
+drum_back4 = _drum_back4(True, False)
+drum_back4_tail = _drum_back4(False, False)
+drum_back4_tangent = _drum_back4(True, True)
+drum_back4_tangent_tail = _drum_back4(False, True)

@@ -1,0 +1,118 @@
+"""The four-lane pair pass (granpipe.engine.simd) against the scalar passes it replaces."""
+
+import numpy as np
+import pytest
+
+from granpipe.engine import Simulation, WallDisks
+from granpipe.engine import kernels as K
+from granpipe.engine.laws import drum_force
+from granpipe.engine.simd import lanes_of
+from tests.engine.conftest import DRUM_LAW, DT_DRUM
+from tests.engine.test_neighbours import dense_state
+
+
+def _replica(state):
+    return {
+        k: (v[0] if isinstance(v, np.ndarray) and v.ndim > 0 else v) for k, v in state._s.items()
+    }
+
+
+def _scalar_passes(s, law, npairs, tangent):
+    """Gather, law and scatter as separate scalar/auto-vectorised passes."""
+    K._gather(s["vec"], s["sca"], s["pair_ij"], s["buf"], npairs, 1 if tangent else 0)
+    pc = s["pair_c"]
+    if tangent:
+        out = K._drum_pairs_tangent(s["buf"], pc[K.P_SUM], pc[K.P_LIM], s["touch"], law, npairs)
+    else:
+        out = K._drum_pairs(s["buf"], pc[K.P_SUM], pc[K.P_LIM], s["touch"], law, npairs)
+    start = s["pair_start"].copy()
+    # the scatter reads its length from the CSR rows: cut them at npairs
+    start[start > npairs] = npairs
+    K._scatter(
+        s["vec"],
+        s["sca"],
+        s["ivec"],
+        start,
+        s["pair_ij"],
+        s["buf"],
+        s["touch"],
+        tangent,
+        False,
+        False,
+    )
+    return out
+
+
+@pytest.mark.parametrize("tangent", [False, True])
+def test_four_lane_pass_equals_scalar_passes_bit_for_bit(tangent):
+    """Forces, perturbations, touch flags and counts of the fused four-lane pass are the
+    scalar passes' to the last bit, for list lengths with every remainder modulo 4 (the
+    last, partial group), on a dense state where some listed pairs are apart."""
+    pos, radii, masses, is_wall, vel, _ = dense_state(3, shrink=0.99)
+    sim = Simulation(DRUM_LAW, dt=DT_DRUM, wall_disks=WallDisks(omega=0.3), skin=0.2)
+    state = sim.new_state(pos, radii, masses, velocities=vel, is_wall=is_wall)
+    sim.random_tangent(state, np.random.default_rng(0))
+    law = sim._params()[1]
+    npairs = int(state._s["counters"][0, K.N_PAIRS])
+    assert npairs > 50
+    for cut in range(4):
+        m = npairs - cut
+        ref = state.copy()
+        new = state.copy()
+        a = _replica(ref)
+        b = _replica(new)
+        b["touch"][:] = a["touch"]
+        out_ref = _scalar_passes(a, law, m, tangent)
+        ncon, bad, changed = K._drum_pair_pass(
+            b["vec"], b["pair_ij"], b["pair_c"], b["buf"], b["touch"], law, m, tangent
+        )
+        assert ncon == out_ref[0]
+        assert not bad and not out_ref[1]
+        if tangent:
+            assert changed == out_ref[2]
+        np.testing.assert_array_equal(b["touch"][:m], a["touch"][:m])
+        for row in (K.FRC, K.T_FRC) if tangent else (K.FRC,):
+            np.testing.assert_array_equal(b["vec"][row], a["vec"][row])
+        touching = a["touch"][:m].sum()
+        assert 0 < touching < m  # both kinds of listed pairs
+
+
+def test_four_lane_pass_flags_a_deep_pair():
+    """A pair pushed deeper than its bound is flagged by the four-lane pass."""
+    pos, radii, masses, is_wall, vel, _ = dense_state(4, shrink=0.99)
+    sim = Simulation(DRUM_LAW, dt=DT_DRUM, wall_disks=WallDisks(omega=0.3), skin=0.2)
+    state = sim.new_state(pos, radii, masses, velocities=vel, is_wall=is_wall)
+    s = _replica(state)
+    law = sim._params()[1]
+    npairs = int(s["counters"][K.N_PAIRS])
+    _, bad, _ = K._drum_pair_pass(
+        s["vec"], s["pair_ij"], s["pair_c"], s["buf"], s["touch"], law, npairs, False
+    )
+    assert not bad
+    k = npairs - 2  # in the last (partial or full) group
+    i, j = s["pair_ij"][K.PI, k], s["pair_ij"][K.PJ, k]
+    s["vec"][K.POS, i] = s["vec"][K.POS, j] + [0.01, 0.0]
+    _, bad, _ = K._drum_pair_pass(
+        s["vec"], s["pair_ij"], s["pair_c"], s["buf"], s["touch"], law, npairs, False
+    )
+    assert bad
+
+
+def test_lane_law_refuses_to_branch_on_a_lane():
+    """A law that branches (``if``) on a lane value cannot run on four lanes: clear error."""
+
+    def branching(x):
+        if x > 0.0:
+            return x
+        return -x
+
+    law4 = lanes_of(branching)
+    from granpipe.engine import simd
+
+    class _FakeBuilder:
+        def fcmp_ordered(self, op, a, b):
+            return "mask"
+
+    with pytest.raises(TypeError, match="may not branch"):
+        law4(simd._Lanes(_FakeBuilder(), None))
+    assert lanes_of(drum_force).__name__ == "drum_force"
