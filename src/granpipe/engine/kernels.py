@@ -36,7 +36,9 @@ loop is latency bound. The scatter is one flat pass too: short per-disk inner lo
 mispredict their exits (that cost more than the arithmetic), and the owner's sums stay
 in registers until its row ends. The per-disk passes work on flat ``2N`` arrays and
 reduce flags by integer counts so that they vectorise; bad states are located only
-after a flag is raised. Flat-wall contacts are found in one pass for all walls.
+after a flag is raised. Flat-wall contacts are found in one pass for all walls. With the
+tangent vector the drum uses instead one fused pass in two vectorised halves, four pairs
+at a time (:func:`_drum_pair_pass`, :mod:`granpipe.engine.simd`; same bits).
 """
 
 from __future__ import annotations
