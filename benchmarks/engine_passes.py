@@ -5,7 +5,8 @@
 Runs on the same settled states as ``benchmarks/engine.py`` (drum pile of SPEC §1,
 rotating; dense box crystal of SPEC §3) and times, in a jitted loop, each pass the step
 loop of :mod:`granpipe.engine.kernels` makes: the gather of relative coordinates, the
-contact law over the listed pairs, the scatter of pair forces onto disks, the flat-wall
+contact law over the listed pairs, the scatter of pair forces onto disks (and the fused
+four-lane pass that does all three, used with the tangent vector), the flat-wall
 contacts, the per-disk kicks, and a list rebuild. Figures are the best of ``--repeats``
 chunks (the machine's noise only adds time), in ns per particle and ns per listed pair;
 the passes of one step add up to a little less than the whole step of engine.py (the
@@ -65,6 +66,14 @@ def _box_law(nrep, buf, pair_c, xi, touch, law, npairs):
             0.0,
             npairs,
         )[0]
+    return c
+
+
+@njit
+def _fused(nrep, vec, pair_ij, pair_c, buf, touch, law, npairs, tangent):
+    c = 0
+    for _ in range(nrep):
+        c += K._drum_pair_pass(vec, pair_ij, pair_c, buf, touch, law, npairs, tangent)[0]
     return c
 
 
@@ -157,6 +166,9 @@ def main(argv=None):
             _scatter, (vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, False), nrep, rep
         )
         _row(out, "drum", f"scatter.{tag}", sec, n, npairs)
+        # gather + law + scatter in one four-lane pass (used by the engine with tangent)
+        sec = _best(_fused, (vec, pair_ij, pair_c, buf, touch, law, npairs, tangent), nrep, rep)
+        _row(out, "drum", f"fused_pass.{tag}", sec, n, npairs)
         sec = _best(_kicks, (vec, sca, False, tangent), nrep, rep)
         _row(out, "drum", f"kicks.{tag}", sec, n, npairs)
     sec = _best(_tangent_kick, (vec, sca, ivec, s["info"], s["counters"]), nrep, rep)

@@ -237,7 +237,10 @@ class _Frame:
         return self.b.gep(self.a[name].data, [idx])
 
     def scalar(self, name, idx):
-        return self.b.load(self.ptr(name, idx), align=8)
+        p = self.ptr(name, idx)
+        elem = p.type.pointee
+        align = elem.width // 8 if isinstance(elem, ir.IntType) else 8
+        return self.b.load(p, align=align)
 
     def index(self, name):
         """The four pair indices ``name[k + lane]`` as i64."""
