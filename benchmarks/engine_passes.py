@@ -93,8 +93,8 @@ def _recount(nrep, vec, sca, ivec, pair_start, pair_ij, buf, touch):
 def _kicks(nrep, vec, sca, spin_on, tangent):
     # dt = 0: the state does not move, the work is the same
     for _ in range(nrep):
-        K._kick_drift(vec, sca, 0.0, 1e300, spin_on, tangent)
-        K._final_kick(vec, sca, 0.0, spin_on, True)
+        K._kick_drift(vec, sca, 0.0, 1e300, spin_on, tangent, True, False)
+        K._v2(vec, 0.0)
 
 
 @njit

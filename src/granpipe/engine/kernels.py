@@ -277,11 +277,16 @@ def _set_gravity(vec, sca, gx, gy):
 
 
 @njit
-def _kick_drift(vec, sca, dt, thr, spin_on, tangent):
+def _kick_drift(vec, sca, dt, thr, spin_on, tangent, finish, want_v2):
     """First half kick and drift (walls too: zero inverse mass, positions reset after).
 
-    Returns True if some disk is now farther than ``thr`` (= skin/2) from where it was
-    at the last list build.
+    With ``finish``, the second half kick of the previous step is done in the same pass
+    (it uses the same force: ``v = w + (dt/2) F/m``, then ``w' = v + (dt/2) F/m``, the
+    operations of :func:`_final_kick` followed by the first kick), so that the per-disk
+    rows are read once per step. Returns ``(moved, v2, bad)``: ``moved`` if some disk is
+    now farther than ``thr`` (= skin/2) from where it was at the last list build; for the
+    finished step, ``v2`` (sum of ``|v|²`` over mobile disks if ``want_v2``, else 0) and
+    ``bad`` (a non-finite or huge half-step velocity or spin).
     """
     p = _flat(vec[POS])
     v = _flat(vec[VEL])
@@ -290,10 +295,20 @@ def _kick_drift(vec, sca, dt, thr, spin_on, tangent):
     b = _flat(vec[POS_BUILD])
     h = 0.5 * dt
     thr2 = thr * thr
-    for k in range(p.shape[0]):
-        w = v[k] + h * (f[k] * im[k])
-        v[k] = w
-        p[k] = p[k] + dt * w
+    v2 = _v2(vec, h) if finish and want_v2 else 0.0
+    bad = 0
+    if finish:
+        for k in range(p.shape[0]):
+            a = h * (f[k] * im[k])
+            w = (v[k] + a) + a
+            v[k] = w
+            p[k] = p[k] + dt * w
+            bad += 0 if abs(w) < _BIG else 1
+    else:
+        for k in range(p.shape[0]):
+            w = v[k] + h * (f[k] * im[k])
+            v[k] = w
+            p[k] = p[k] + dt * w
     # flat arrays and an integer count (not a boolean or): the loop vectorises
     moved = 0
     for i in range(p.shape[0] // 2):
@@ -304,8 +319,15 @@ def _kick_drift(vec, sca, dt, thr, spin_on, tangent):
         spin = sca[SPIN]
         trq = sca[TORQUE]
         inv_i = sca[INV_INERTIA]
-        for i in range(spin.shape[0]):
-            spin[i] = spin[i] + h * (trq[i] * inv_i[i])
+        if finish:
+            for i in range(spin.shape[0]):
+                a = h * (trq[i] * inv_i[i])
+                w = (spin[i] + a) + a
+                spin[i] = w
+                bad += 0 if abs(w) < _BIG else 1
+        else:
+            for i in range(spin.shape[0]):
+                spin[i] = spin[i] + h * (trq[i] * inv_i[i])
     if tangent:
         tr = _flat(vec[T_POS])
         tv = _flat(vec[T_VEL])
@@ -314,7 +336,37 @@ def _kick_drift(vec, sca, dt, thr, spin_on, tangent):
             w = tv[k] + h * (tf[k] * im[k])
             tv[k] = w
             tr[k] = tr[k] + dt * w
-    return moved > 0
+    return moved > 0, v2, bad > 0
+
+
+@njit
+def _v2(vec, h):
+    """``sum |v + h F/m|²`` over mobile disks: the speed after a pending second half kick.
+
+    Four partial sums: a fixed order (reproducible) that does not serialise on one add.
+    """
+    v = _flat(vec[VEL])
+    f = _flat(vec[FRC])
+    im = _flat(vec[IM2])
+    mob = _flat(vec[MOB2])
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    m = v.shape[0] - v.shape[0] % 4
+    for k in range(0, m, 4):
+        u0 = v[k] + h * (f[k] * im[k])
+        u1 = v[k + 1] + h * (f[k + 1] * im[k + 1])
+        u2 = v[k + 2] + h * (f[k + 2] * im[k + 2])
+        u3 = v[k + 3] + h * (f[k + 3] * im[k + 3])
+        s0 += u0 * u0 * mob[k]
+        s1 += u1 * u1 * mob[k + 1]
+        s2 += u2 * u2 * mob[k + 2]
+        s3 += u3 * u3 * mob[k + 3]
+    for k in range(m, v.shape[0]):
+        u = v[k] + h * (f[k] * im[k])
+        s0 += u * u * mob[k]
+    return (s0 + s1) + (s2 + s3)
 
 
 @njit
@@ -323,8 +375,8 @@ def _final_kick(vec, sca, dt, spin_on, want_v2):
     v = _flat(vec[VEL])
     f = _flat(vec[FRC])
     im = _flat(vec[IM2])
-    mob = _flat(vec[MOB2])
     h = 0.5 * dt
+    v2 = _v2(vec, h) if want_v2 else 0.0
     bad = 0
     for k in range(v.shape[0]):
         w = v[k] + h * (f[k] * im[k])
@@ -338,22 +390,7 @@ def _final_kick(vec, sca, dt, spin_on, want_v2):
             w = spin[i] + h * (trq[i] * inv_i[i])
             spin[i] = w
             bad += 0 if abs(w) < _BIG else 1
-    if not want_v2:
-        return 0.0, bad > 0
-    # four partial sums: a fixed order (reproducible) that does not serialise on one add
-    s0 = 0.0
-    s1 = 0.0
-    s2 = 0.0
-    s3 = 0.0
-    m = v.shape[0] - v.shape[0] % 4
-    for k in range(0, m, 4):
-        s0 += v[k] * v[k] * mob[k]
-        s1 += v[k + 1] * v[k + 1] * mob[k + 1]
-        s2 += v[k + 2] * v[k + 2] * mob[k + 2]
-        s3 += v[k + 3] * v[k + 3] * mob[k + 3]
-    for k in range(m, v.shape[0]):
-        s0 += v[k] * v[k] * mob[k]
-    return (s0 + s1) + (s2 + s3), bad > 0
+    return v2, bad > 0
 
 
 @njit
@@ -1350,6 +1387,40 @@ def _at(st, r):
     )
 
 
+# block accumulators of a run (float64 (_NBLK,)): sum of V, steps in the block, sum of
+# lambda, steps where lambda is defined, index of the next block
+_V_SUM, _IN_BLOCK, _LAM_SUM, _LAM_N, _BLOCK = range(5)
+_NBLK = 5
+
+
+@njit
+def _block_means(v2, stride, blk, out_speed, out_nlam, out_lam):
+    """Add a finished step's ``V = sqrt(v2)`` to the block; every ``stride`` steps write the
+    block means of ``V`` (and of lambda if ``out_lam`` is not empty) and start a new one."""
+    blk[_V_SUM] += math.sqrt(v2)
+    blk[_IN_BLOCK] += 1.0
+    if blk[_IN_BLOCK] == stride:
+        b = int(blk[_BLOCK])
+        out_speed[b] = blk[_V_SUM] / stride
+        if out_lam.shape[0] > 0:
+            lam_n = int(blk[_LAM_N])
+            out_nlam[b] = lam_n
+            out_lam[b] = blk[_LAM_SUM] / lam_n if lam_n > 0 else np.nan
+        blk[:] = 0.0
+        blk[_BLOCK] = b + 1
+
+
+@njit
+def _end_run(vec, sca, dt, spin_on, stride, blk, out_speed, out_nlam, out_lam, info, counters):
+    """The last step's second half kick (pending in the step loop) and its block means."""
+    v2, bad = _final_kick(vec, sca, dt, spin_on, stride > 0)
+    if bad:
+        return _fail(info, NONFINITE, _first_nonfinite(vec, sca), -1, counters[STEP])
+    if stride > 0:
+        _block_means(v2, stride, blk, out_speed, out_nlam, out_lam)
+    return OK
+
+
 @njit
 def _drum_replica(
     n_steps, stride, tangent, dt, g, law, wd, fw, skin, st, out_lam, out_nlam, out_speed, info
@@ -1366,15 +1437,16 @@ def _drum_replica(
     # fmt: on
     half_skin = 0.5 * skin
     _set_gravity(vec, sca, g[0], g[1])
-    lam_sum = 0.0
-    lam_n = 0
-    v_sum = 0.0
-    b = 0
-    in_block = 0
+    blk = np.zeros(_NBLK)
     zb = 0.0
-    for _ in range(n_steps):
+    for s in range(n_steps):
         step = counters[STEP] + 1
-        moved = _kick_drift(vec, sca, dt, half_skin, False, tangent)
+        # the last step's second half kick is done with this step's first (same force)
+        moved, v2, bad = _kick_drift(vec, sca, dt, half_skin, False, tangent, s > 0, stride > 0)
+        if bad:
+            return _fail(info, NONFINITE, _first_nonfinite(vec, sca), -1, step - 1)
+        if s > 0 and stride > 0:
+            _block_means(v2, stride, blk, out_speed, out_nlam, out_lam)
         wmoved, zb, vb = _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin)
         counters[STEP] = step
         if moved or wmoved or counters[FORCE_REBUILD] != 0:
@@ -1415,28 +1487,19 @@ def _drum_replica(
             return info[0]
         counters[CONTACT_SUM] += ncon
         counters[STEPS_RUN] += 1
-        v2, bad = _final_kick(vec, sca, dt, False, stride > 0)
-        if bad:
-            return _fail(info, NONFINITE, _first_nonfinite(vec, sca), -1, step)
         if tangent:
             num, den = _tangent_kick(vec, sca, ivec, dt, info, step, counters)
             if num < 0.0:
                 return info[0]
             if num > 0.0 and den > 0.0:
-                lam_sum += 0.5 * math.log(num / den) / dt
-                lam_n += 1
-        if stride > 0:
-            v_sum += math.sqrt(v2)
-            in_block += 1
-            if in_block == stride:
-                out_speed[b] = v_sum / stride
-                out_nlam[b] = lam_n
-                out_lam[b] = lam_sum / lam_n if lam_n > 0 else np.nan
-                b += 1
-                in_block = 0
-                v_sum = 0.0
-                lam_sum = 0.0
-                lam_n = 0
+                blk[_LAM_SUM] += 0.5 * math.log(num / den) / dt
+                blk[_LAM_N] += 1.0
+    if n_steps > 0:
+        code = _end_run(
+            vec, sca, dt, False, stride, blk, out_speed, out_nlam, out_lam, info, counters
+        )
+        if code != OK:
+            return code
     if n_steps > 0 and not tangent:
         _count_contacts(vec, sca, ivec, pair_ij, pair_c, counters[N_PAIRS], fw, zb)
     return OK
@@ -1451,13 +1514,17 @@ def _box_replica(n_steps, stride, dt, g, law, wd, fw, skin, st, out_speed, info)
     # fmt: on
     half_skin = 0.5 * skin
     _set_gravity(vec, sca, g[0], g[1])
-    v_sum = 0.0
-    b = 0
-    in_block = 0
+    blk = np.zeros(_NBLK)
+    no_lam = np.zeros(0)
+    no_nlam = np.zeros(0, np.int64)
     zb = 0.0
-    for _ in range(n_steps):
+    for s in range(n_steps):
         step = counters[STEP] + 1
-        moved = _kick_drift(vec, sca, dt, half_skin, True, False)
+        moved, v2, bad = _kick_drift(vec, sca, dt, half_skin, True, False, s > 0, stride > 0)
+        if bad:
+            return _fail(info, NONFINITE, _first_nonfinite(vec, sca), -1, step - 1)
+        if s > 0 and stride > 0:
+            _block_means(v2, stride, blk, out_speed, no_nlam, no_lam)
         wmoved, zb, vb = _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin)
         counters[STEP] = step
         if moved or wmoved or counters[FORCE_REBUILD] != 0:
@@ -1503,18 +1570,10 @@ def _box_replica(n_steps, stride, dt, g, law, wd, fw, skin, st, out_speed, info)
             return info[0]
         counters[CONTACT_SUM] += ncon
         counters[STEPS_RUN] += 1
-        v2, bad = _final_kick(vec, sca, dt, True, stride > 0)
-        if bad:
-            return _fail(info, NONFINITE, _first_nonfinite(vec, sca), -1, step)
-        if stride > 0:
-            v_sum += math.sqrt(v2)
-            in_block += 1
-            if in_block == stride:
-                out_speed[b] = v_sum / stride
-                b += 1
-                in_block = 0
-                v_sum = 0.0
     if n_steps > 0:
+        code = _end_run(vec, sca, dt, True, stride, blk, out_speed, no_nlam, no_lam, info, counters)
+        if code != OK:
+            return code
         _count_contacts(vec, sca, ivec, pair_ij, pair_c, counters[N_PAIRS], fw, zb)
     return OK
 
