@@ -116,3 +116,39 @@ def test_lane_law_refuses_to_branch_on_a_lane():
     with pytest.raises(TypeError, match="may not branch"):
         law4(simd._Lanes(_FakeBuilder(), None))
     assert lanes_of(drum_force).__name__ == "drum_force"
+
+
+def test_touch_bits_match_the_scalar_compaction_test():
+    """The four-lane test of the compacted gather flags exactly the pairs the scalar test
+    keeps, ``not (dx² + dy² > s²)``: random pairs on both sides of contact, pairs at
+    exactly ``r = s``, and a NaN position (kept, so that the pass reports it)."""
+    from numba import njit
+
+    from granpipe.engine.simd import touch_bits4
+
+    @njit
+    def bits(pos, pi, pj, ssum):
+        out = np.empty(pi.shape[0] // 4, np.int64)
+        for g in range(out.shape[0]):
+            out[g] = touch_bits4(pos, pi, pj, 4 * g, ssum)
+        return out
+
+    rng = np.random.default_rng(5)
+    n, p = 300, 4000
+    pos = rng.uniform(0.0, 6.0, (n, 2))
+    pi = rng.integers(0, n, p).astype(np.uint32)
+    pj = rng.integers(0, n, p).astype(np.uint32)
+    d = pos[pi] - pos[pj]
+    r2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]
+    ssum = np.sqrt(r2) * rng.choice([0.9, 1.1], p)
+    exact = rng.random(p) < 0.05  # the contact test's boundary: r² == s² exactly
+    pos[pi[exact]] = [1.0, 1.0]
+    pos[pj[exact]] = [4.0, 5.0]
+    ssum[exact] = 5.0
+    pos[7] = np.nan
+    d = pos[pi] - pos[pj]
+    r2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]
+    keep = ~(r2 > ssum * ssum)
+    assert 0.3 < keep.mean() < 0.7 and (np.isnan(r2) & keep).any() and (r2 == 25.0).sum() > 50
+    expect = (keep.reshape(-1, 4) * [1, 2, 4, 8]).sum(axis=1)
+    np.testing.assert_array_equal(bits(pos.ravel(), pi, pj, ssum), expect)

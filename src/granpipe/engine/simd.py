@@ -291,6 +291,24 @@ class _Frame:
             d.append(b.fsub(b.load(pa, align=8), b.load(pb, align=8)))
         return [_Lanes(b, v) for v in _transpose4(b, d)]
 
+    def xy_diff(self, name, i, j):
+        """``name[2i:2i+2] - name[2j:2j+2]`` of the four pairs (a flat ``2N`` per-disk row),
+        as two lane vectors ``(dx, dy)``: one two-wide load and subtraction per disk."""
+        b = self.b
+        two = ir.Constant(_I64, 2)
+        d = []
+        for il, jl in zip(i, j, strict=True):
+            pa = b.bitcast(self.ptr(name, b.mul(il, two)), _V2.as_pointer())
+            pb = b.bitcast(self.ptr(name, b.mul(jl, two)), _V2.as_pointer())
+            d.append(b.fsub(b.load(pa, align=8), b.load(pb, align=8)))
+        m4 = ir.VectorType(_I32, 4)
+        lo = b.shuffle_vector(d[0], d[1], ir.Constant(m4, [0, 1, 2, 3]))
+        hi = b.shuffle_vector(d[2], d[3], ir.Constant(m4, [0, 1, 2, 3]))
+        return [
+            _Lanes(b, b.shuffle_vector(lo, hi, ir.Constant(m4, [c, c + 2, c + 4, c + 6])))
+            for c in (0, 1)
+        ]
+
     def mask_i64(self, m):
         """A lane mask as ``<4 x i64>`` 0/1 (lanes past the last valid pair cleared)."""
         v = m.v
@@ -402,6 +420,28 @@ def _sqrt(x):
 
 # rows of the pair buffer (kernels.B_*) through which the two halves of a pair pass talk
 _B_NX, _B_NY, _B_DVX, _B_DVY, _B_E0, _B_DELTA, _B_INV_R = 0, 1, 2, 3, 4, 8, 9
+
+
+@intrinsic
+def touch_bits4(typingctx, pos, pi, pj, k, ssum):
+    """``sum over lanes c of 2**c`` for the listed pairs ``k .. k+3`` that are not apart,
+    i.e. ``not (dx² + dy² > ssum²)`` with ``(dx, dy)`` from the flat ``2N`` positions
+    ``pos`` (the test, and its treatment of NaN, of the scalar compaction in
+    :func:`granpipe.engine.kernels._gather_compact`; the same IEEE operations). Zero when
+    all four are apart: the compacted gather skips such groups without a branch per pair.
+    """
+    sig = types.int64(pos, pi, pj, k, ssum)
+
+    def codegen(context, builder, signature, args):
+        fr = _Frame(context, builder, signature, args, ("pos", "pi", "pj", "k", "ssum"), True)
+        dx, dy = fr.xy_diff("pos", fr.index("pi"), fr.index("pj"))
+        s = fr.lanes("ssum")
+        apart = dx * dx + dy * dy > s * s
+        bits = builder.bitcast(apart.v, ir.IntType(4))
+        return builder.zext(builder.xor(bits, ir.Constant(ir.IntType(4), 15)), _I64)
+
+    return sig, codegen
+
 
 _FRONT_ARGS = ("rec", "rect", "pi", "pj", "k", "nvalid", "ssum", "slim", "touch", "rows", "cap")
 
