@@ -115,7 +115,11 @@ class Ensemble:
         """
         out = {"engine_format": np.asarray(_FORMAT)}
         for key, val in self._s.items():
-            if isinstance(val, np.ndarray):
+            if key in _SCRATCH_KEYS:
+                continue
+            if key == "vec":
+                out[key] = val[:, : K.XV].copy()
+            elif isinstance(val, np.ndarray):
                 out[key] = val.copy()
             else:
                 out[key] = np.asarray(val)
@@ -126,7 +130,7 @@ class Ensemble:
     def from_arrays(arrays):
         """Rebuild a :class:`State` or :class:`Ensemble` saved by :meth:`to_arrays`."""
         fmt = int(np.asarray(arrays.get("engine_format", -1)))
-        if fmt not in (2, _FORMAT):
+        if fmt not in (2, 3, _FORMAT):
             raise ConfigError(f"engine state format {fmt} is not {_FORMAT}; rerun to regenerate")
         storage = {}
         for key, val in arrays.items():
@@ -143,13 +147,21 @@ class Ensemble:
                 storage[key] = tuple(float(c) for c in a)
             else:
                 storage[key] = np.ascontiguousarray(a).copy()
-        if fmt == 2:
-            # format 2 had no per-disk record rows (scratch, rewritten before every gather)
-            # and one-byte touch flags (64-bit now: the law passes then need no packing)
+        if fmt != 3:
+            # formats 2 and 4 have no per-disk record rows (scratch, rewritten before every
+            # gather); format 4 has no other scratch either (recreated here)
             vec = storage["vec"]
             pad = np.zeros((vec.shape[0], K.NV - vec.shape[1]) + vec.shape[2:])
             storage["vec"] = np.ascontiguousarray(np.concatenate([vec, pad], axis=1))
+        if fmt == 2:
+            # one-byte touch flags then (64-bit now: the law passes then need no packing)
             storage["touch"] = storage["touch"].astype(np.int64)
+        if fmt == _FORMAT:
+            storage.update(
+                _scratch(
+                    storage["vec"].shape[:1], storage["vec"].shape[2], storage["pair_ij"].shape[-1]
+                )
+            )
         cls = State if bool(np.asarray(arrays["single"])) else Ensemble
         return cls(storage)
 
@@ -338,7 +350,20 @@ def _pad(arr, width):
     return out
 
 
-_FORMAT = 3
+_FORMAT = 4
+# storage that only carries values within one step or list build (pair buffers, the old
+# list while histories are carried over): not saved by ``to_arrays``
+_SCRATCH_KEYS = ("old_start", "old_j", "old_xi", "buf")
+
+
+def _scratch(lead, n, cap):
+    """Zeroed scratch storage for ``lead`` replicas of ``n`` disks, pair capacity ``cap``."""
+    return {
+        "old_start": np.zeros(lead + (n + 1,), dtype=np.int64),
+        "old_j": np.zeros(lead + (cap,), dtype=np.uint32),
+        "old_xi": np.zeros(lead + (cap,)),
+        "buf": np.zeros(lead + (K.NB, cap)),
+    }
 
 
 @dataclass(frozen=True)
@@ -544,10 +569,7 @@ class Simulation:
             "pair_ij": np.zeros((r_count, 3, cap), dtype=np.uint32),
             "pair_c": np.zeros((r_count, K.NPC, cap)),
             "pair_xi": np.zeros((r_count, cap)),
-            "old_start": np.zeros((r_count, n + 1), dtype=np.int64),
-            "old_j": np.zeros((r_count, cap), dtype=np.uint32),
-            "old_xi": np.zeros((r_count, cap)),
-            "buf": np.zeros((r_count, K.NB, cap)),
+            **_scratch((r_count,), n, cap),
             "touch": np.zeros((r_count, cap), dtype=np.int64),
             "cell_count": np.zeros((r_count, ccap + 1), dtype=np.int64),
             "cell_start": np.zeros((r_count, ccap + 1), dtype=np.int64),
