@@ -68,3 +68,21 @@ def test_bottom_height_ramp_and_phase():
     for s in (2.0, 7.0):
         fd = (flat.height(s + h) - flat.height(s - h)) / (2 * h)
         assert flat.velocity(s) == pytest.approx(fd, rel=1e-8)
+
+
+def test_rising_bottom_meets_a_resting_disk_when_their_gap_closes():
+    """A disk at rest without gravity, far above the bottom (more than the near-wall
+    list's margin), is struck in the step where the rising bottom reaches it: the
+    near-wall list is rebuilt as the bottom moves, not only when disks move."""
+    a, amp, omega = 0.5, 1.0, 1.0
+    flat = FlatWalls(bottom=True, z0=0.0, amplitude=amp, omega=omega, phase=-math.pi / 2)
+    dt = BOX_LAW.contact_time(0.5) / 50
+    sim = Simulation(BOX_LAW, dt=dt, flat_walls=flat, gravity=(0.0, 0.0), skin=0.05)
+    y0 = a + 0.5 * amp  # the bottom (from -A) passes z = A/2 at omega t = 2 pi / 3
+    state = sim.new_state([[3.0, y0]], [a], [1.0])
+    t_hit = (2 * math.pi / 3) / omega
+    n_before = int(t_hit / dt) - 1
+    sim.run(state, n_before)
+    assert state.velocities[0, 1] == 0.0 and state.neighbour_stats()["rebuilds"] == 1
+    sim.run(state, 3)
+    assert state.velocities[0, 1] > 0.0

@@ -89,12 +89,14 @@ PI, PJ, PK = range(3)
 # clock (5,): time origin, wall angle, its angular velocity over the last step, the angle
 # at the last list build, the largest distance of a wall disk from the centre
 T_ORIGIN, THETA, LAST_OMEGA, THETA_BUILD, WALL_RMAX = range(5)
-NCLOCK = 5
+ZB_NEAR = 5  # the bottom's height when the near-wall list was built
+NCLOCK = 6
 # counters (8,)
 STEP, N_PAIRS, N_REBUILDS, FORCE_REBUILD, LOG2_SCALE, CONTACT_SUM, STEPS_RUN, N_WALLS = range(8)
 LAST_PAIR_CONTACTS = 8  # contacts among listed pairs at the last evaluation (pass choice)
 COUNT_STALE = 9  # the per-disk pair-contact counts must be recomputed (list rebuilt)
-NCOUNT = 10
+NEAR_WALLS = 10  # disks in the near-wall list (ivec[CELL_ITEMS]); -1: to be rebuilt
+NCOUNT = 11
 # info (4,): status, particle, other, step
 OK, NONFINITE, DEEP_OVERLAP, LIST_OVERFLOW, TANGENT_NONFINITE = range(5)
 # "other" codes for flat walls in info
@@ -197,6 +199,7 @@ def _pair_constants(sca, pair_start, pair_ij, pair_c, npairs):
 def _rebuild(
     vec, sca, ivec, skin, pair_start, pair_ij, pair_c, cell_count, cell_start, clock, counters
 ):
+    counters[NEAR_WALLS] = -1  # the cell pass overwrites the near-wall list
     npairs = build_pairs(
         vec[POS],
         sca[RADIUS],
@@ -1035,19 +1038,54 @@ def _wall_normal(w):
 
 
 @njit
-def _wall_candidates(vec, sca, fw, zb, reset, out, info, step):
-    """Mobile disks touching at least one flat wall, listed in ``out``; returns how many,
-    or -1 (recorded in ``info``) if one overlaps a wall by more than half its radius.
+def _near_walls(vec, sca, ivec, fw, zb, skin, reset, clock, counters):
+    """List in ``ivec[CELL_ITEMS]`` the mobile disks within ``2 skin`` of touching a flat
+    wall (ascending); zero the wall shear histories of the others (with ``reset``).
 
-    One pass over the disks for all three walls (an absent wall sits at infinity). With
-    ``reset``, the shear history against each wall (``sca[XI_LEFT + w]``) of the disks
-    not touching it is zeroed. Most disks touch no wall, so the branch is well
-    predicted and the contact loops only see the listed disks.
+    The list is rebuilt with the neighbour list and when the bottom has moved more than
+    ``skin/2`` since: until then a disk has moved at most ``skin`` from where it was
+    listed (each less than ``skin/2`` from its place at the list build) and the bottom at
+    most ``skin/2``, so a disk not listed cannot touch a wall, and its history is zero.
     """
-    pos = vec[POS]
     p = _flat(vec[POS])
     mob = _flat(vec[MOB2])
     radius = sca[RADIUS]
+    near = ivec[CELL_ITEMS]
+    x_left = fw[1] if fw[0] != 0.0 else -_BIG
+    x_right = fw[3] if fw[2] != 0.0 else _BIG
+    z_bottom = zb if fw[4] != 0.0 else -_BIG
+    margin = 2.0 * skin
+    m = 0
+    for i in range(radius.shape[0]):
+        x = p[2 * i]
+        y = p[2 * i + 1]
+        a = radius[i] + margin
+        if mob[2 * i] != 0.0 and (x - x_left <= a or x_right - x <= a or y - z_bottom <= a):
+            near[m] = i
+            m += 1
+        elif reset:
+            sca[XI_LEFT, i] = 0.0
+            sca[XI_RIGHT, i] = 0.0
+            sca[XI_BOTTOM, i] = 0.0
+    counters[NEAR_WALLS] = m
+    clock[ZB_NEAR] = zb
+
+
+@njit
+def _wall_candidates(vec, sca, ivec, fw, zb, reset, nnear, out, info, step):
+    """Disks of the near-wall list (``nnear`` in ``ivec[CELL_ITEMS]``) touching at least one
+    flat wall, listed in ``out``; returns how many, or -1 (recorded in ``info``) if one
+    overlaps a wall by more than half its radius.
+
+    One pass for all three walls (an absent wall sits at infinity). With ``reset``, the
+    shear history against each wall (``sca[XI_LEFT + w]``) of the listed disks not
+    touching it is zeroed. Most disks touch no wall, so the branch is well predicted and
+    the contact loops only see the touching disks.
+    """
+    pos = vec[POS]
+    p = _flat(vec[POS])
+    radius = sca[RADIUS]
+    near = ivec[CELL_ITEMS]
     xi_l = sca[XI_LEFT]
     xi_r = sca[XI_RIGHT]
     xi_b = sca[XI_BOTTOM]
@@ -1055,14 +1093,14 @@ def _wall_candidates(vec, sca, fw, zb, reset, out, info, step):
     x_right = fw[3] if fw[2] != 0.0 else _BIG
     z_bottom = zb if fw[4] != 0.0 else -_BIG
     m = 0
-    for i in range(radius.shape[0]):
+    for q in range(nnear):
+        i = near[q]
         x = p[2 * i]
         y = p[2 * i + 1]
         a = radius[i]
-        on = mob[2 * i] != 0.0
-        t_l = (x - x_left <= a) & on
-        t_r = (x_right - x <= a) & on
-        t_b = (y - z_bottom <= a) & on
+        t_l = x - x_left <= a
+        t_r = x_right - x <= a
+        t_b = y - z_bottom <= a
         if reset:
             xi_l[i] = xi_l[i] if t_l else 0.0
             xi_r[i] = xi_r[i] if t_r else 0.0
@@ -1078,10 +1116,13 @@ def _wall_candidates(vec, sca, fw, zb, reset, out, info, step):
 
 
 @njit
-def _flat_walls(law_id, vec, sca, ivec, law, fw, zb, vb, tangent, dt_hist, count, info, step):
+def _flat_walls(law_id, vec, sca, ivec, law, fw, zb, vb, tangent, dt_hist, count, info, step, near):
     """Contacts of the disks with the flat walls under the drum law (``law_id`` 0, with the
     tangent perturbation if ``tangent``) or the box law (1: per-disk shear histories
     advanced by ``dt_hist``, torques). Returns the contact count, or -1 (bad state).
+
+    ``near`` is ``(skin, clock, counters)``: the disks tested are those of the near-wall
+    list (:func:`_near_walls`, rebuilt here when stale).
     """
     pos = vec[POS]
     vel = vec[VEL]
@@ -1096,7 +1137,12 @@ def _flat_walls(law_id, vec, sca, ivec, law, fw, zb, vb, tangent, dt_hist, count
     contacts = ivec[CONTACTS]
     ncon = 0
     cand = ivec[CELL_OF]  # scratch between list builds
-    m = _wall_candidates(vec, sca, fw, zb, law_id == 1, cand, info, step)
+    skin, clock, counters = near
+    if counters[NEAR_WALLS] < 0:
+        _near_walls(vec, sca, ivec, fw, zb, skin, law_id == 1, clock, counters)
+    m = _wall_candidates(
+        vec, sca, ivec, fw, zb, law_id == 1, counters[NEAR_WALLS], cand, info, step
+    )
     if m < 0:
         return -1
     for q in range(m):
@@ -1224,6 +1270,8 @@ def _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin):
     if fw[4] != 0.0:
         zb = bottom_height(fw, t1)
         vb = bottom_velocity(fw, t0 + 0.5 * dt)
+        if abs(zb - clock[ZB_NEAR]) > half_skin:
+            counters[NEAR_WALLS] = -1
     return moved, zb, vb
 
 
@@ -1260,6 +1308,8 @@ def _drum_forces(
     buf,
     touch,
     counters,
+    skin,
+    clock,
     tangent,
     count,
     info,
@@ -1312,7 +1362,22 @@ def _drum_forces(
     _contact_counts_done(ivec, counters, count, recount, compact)
     counters[LAST_PAIR_CONTACTS] = ncon
     if _has_flat(fw):
-        nw = _flat_walls(0, vec, sca, ivec, law, fw, zb, vb, tangent, 0.0, count, info, step)
+        nw = _flat_walls(
+            0,
+            vec,
+            sca,
+            ivec,
+            law,
+            fw,
+            zb,
+            vb,
+            tangent,
+            0.0,
+            count,
+            info,
+            step,
+            (skin, clock, counters),
+        )
         if nw < 0:
             return -1
         ncon += nw
@@ -1336,6 +1401,8 @@ def _box_forces(
     buf,
     touch,
     counters,
+    skin,
+    clock,
     count,
     info,
     step,
@@ -1372,7 +1439,22 @@ def _box_forces(
     _contact_counts_done(ivec, counters, count, count, compact)
     counters[LAST_PAIR_CONTACTS] = ncon
     if _has_flat(fw):
-        nw = _flat_walls(1, vec, sca, ivec, law, fw, zb, vb, False, dt_hist, count, info, step)
+        nw = _flat_walls(
+            1,
+            vec,
+            sca,
+            ivec,
+            law,
+            fw,
+            zb,
+            vb,
+            False,
+            dt_hist,
+            count,
+            info,
+            step,
+            (skin, clock, counters),
+        )
         if nw < 0:
             return -1
         ncon += nw
@@ -1497,6 +1579,8 @@ def _drum_replica(
             buf,
             touch,
             counters,
+            skin,
+            clock,
             tangent,
             tangent,
             info,
@@ -1581,6 +1665,8 @@ def _box_replica(n_steps, stride, dt, g, law, wd, fw, skin, st, out_speed, info)
             buf,
             touch,
             counters,
+            skin,
+            clock,
             False,
             info,
             step,
@@ -1659,6 +1745,8 @@ def _refresh_replica(law_id, tangent, rebuild, g, law, wd, fw, skin, st, dt, inf
             buf,
             touch,
             counters,
+            skin,
+            clock,
             tangent,
             True,
             info,
@@ -1699,6 +1787,8 @@ def _refresh_replica(law_id, tangent, rebuild, g, law, wd, fw, skin, st, dt, inf
             buf,
             touch,
             counters,
+            skin,
+            clock,
             True,
             info,
             step,

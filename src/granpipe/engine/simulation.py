@@ -156,6 +156,11 @@ class Ensemble:
         if fmt == 2:
             # one-byte touch flags then (64-bit now: the law passes then need no packing)
             storage["touch"] = storage["touch"].astype(np.int64)
+        if fmt != _FORMAT:
+            # no near-wall list then: an empty clock slot, and a counter saying "rebuild it"
+            storage["clock"] = _pad(storage["clock"], K.NCLOCK)
+            storage["counters"] = _pad(storage["counters"], K.NCOUNT)
+            storage["counters"][..., K.NEAR_WALLS] = -1
         if fmt == _FORMAT:
             storage.update(
                 _scratch(
@@ -560,6 +565,7 @@ class Simulation:
         clock[:, K.WALL_RMAX] = np.sqrt((ref**2).sum(-1)).max(-1)
         counters = np.zeros((r_count, K.NCOUNT), dtype=np.int64)
         counters[:, K.N_WALLS] = nw
+        counters[:, K.NEAR_WALLS] = -1
         storage = {
             "vec": vec,
             "sca": sca,
