@@ -1365,22 +1365,8 @@ def _drum_forces(
     _contact_counts_done(ivec, counters, count, recount, compact)
     counters[LAST_PAIR_CONTACTS] = ncon
     if _has_flat(fw):
-        nw = _flat_walls(
-            0,
-            vec,
-            sca,
-            ivec,
-            law,
-            fw,
-            zb,
-            vb,
-            tangent,
-            0.0,
-            count,
-            info,
-            step,
-            (skin, clock, counters),
-        )
+        near = (skin, clock, counters)
+        nw = _flat_walls(0, vec, sca, ivec, law, fw, zb, vb, tangent, 0.0, count, info, step, near)
         if nw < 0:
             return -1
         ncon += nw
@@ -1442,21 +1428,9 @@ def _box_forces(
     _contact_counts_done(ivec, counters, count, count, compact)
     counters[LAST_PAIR_CONTACTS] = ncon
     if _has_flat(fw):
+        near = (skin, clock, counters)
         nw = _flat_walls(
-            1,
-            vec,
-            sca,
-            ivec,
-            law,
-            fw,
-            zb,
-            vb,
-            False,
-            dt_hist,
-            count,
-            info,
-            step,
-            (skin, clock, counters),
+            1, vec, sca, ivec, law, fw, zb, vb, False, dt_hist, count, info, step, near
         )
         if nw < 0:
             return -1

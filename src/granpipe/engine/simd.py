@@ -282,25 +282,25 @@ class _Frame:
     def record_diff(self, name, i, j):
         """Records ``name[4i .. 4i+3] - name[4j .. 4j+3]`` of the four pairs, transposed into
         four lanes per field (field f of pair lane l in lane l of the f-th result)."""
+        return [_Lanes(self.b, v) for v in _transpose4(self.b, self._diffs(name, i, j, _V4))]
+
+    def _diffs(self, name, i, j, vt):
+        """Per pair, ``name[w i .. w i + w-1] - name[w j .. w j + w-1]`` as one vector of
+        type ``vt`` (``w`` lanes): one load from each disk's run of ``w`` values."""
         b = self.b
-        four = ir.Constant(_I64, 4)
+        w = ir.Constant(_I64, vt.count)
         d = []
         for il, jl in zip(i, j, strict=True):
-            pa = b.bitcast(self.ptr(name, b.mul(il, four)), _V4.as_pointer())
-            pb = b.bitcast(self.ptr(name, b.mul(jl, four)), _V4.as_pointer())
+            pa = b.bitcast(self.ptr(name, b.mul(il, w)), vt.as_pointer())
+            pb = b.bitcast(self.ptr(name, b.mul(jl, w)), vt.as_pointer())
             d.append(b.fsub(b.load(pa, align=8), b.load(pb, align=8)))
-        return [_Lanes(b, v) for v in _transpose4(b, d)]
+        return d
 
     def xy_diff(self, name, i, j):
         """``name[2i:2i+2] - name[2j:2j+2]`` of the four pairs (a flat ``2N`` per-disk row),
         as two lane vectors ``(dx, dy)``: one two-wide load and subtraction per disk."""
         b = self.b
-        two = ir.Constant(_I64, 2)
-        d = []
-        for il, jl in zip(i, j, strict=True):
-            pa = b.bitcast(self.ptr(name, b.mul(il, two)), _V2.as_pointer())
-            pb = b.bitcast(self.ptr(name, b.mul(jl, two)), _V2.as_pointer())
-            d.append(b.fsub(b.load(pa, align=8), b.load(pb, align=8)))
+        d = self._diffs(name, i, j, _V2)
         m4 = ir.VectorType(_I32, 4)
         lo = b.shuffle_vector(d[0], d[1], ir.Constant(m4, [0, 1, 2, 3]))
         hi = b.shuffle_vector(d[2], d[3], ir.Constant(m4, [0, 1, 2, 3]))
