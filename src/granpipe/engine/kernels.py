@@ -89,12 +89,12 @@ B_S, B_L, B_M, B_D, B_XI = range(12, 17)
 NB = 17
 # rows of pair_ij (3, P): owner i, partner j, and (compacted passes) the pair index k
 PI, PJ, PK = range(3)
-# clock (5,): time origin, wall angle, its angular velocity over the last step, the angle
-# at the last list build, the largest distance of a wall disk from the centre
+# clock (NCLOCK,): time origin, wall angle, its angular velocity over the last step, the
+# angle at the last list build, the largest distance of a wall disk from the centre
 T_ORIGIN, THETA, LAST_OMEGA, THETA_BUILD, WALL_RMAX = range(5)
 ZB_NEAR = 5  # the bottom's height when the near-wall list was built
 NCLOCK = 6
-# counters (8,)
+# counters (NCOUNT,)
 STEP, N_PAIRS, N_REBUILDS, FORCE_REBUILD, LOG2_SCALE, CONTACT_SUM, STEPS_RUN, N_WALLS = range(8)
 LAST_PAIR_CONTACTS = 8  # contacts among listed pairs at the last evaluation (pass choice)
 COUNT_STALE = 9  # the per-disk pair-contact counts must be recomputed (list rebuilt)

@@ -156,17 +156,14 @@ class Ensemble:
         if fmt == 2:
             # one-byte touch flags then (64-bit now: the law passes then need no packing)
             storage["touch"] = storage["touch"].astype(np.int64)
-        if fmt != _FORMAT:
+        if fmt == _FORMAT:
+            vec = storage["vec"]
+            storage.update(_scratch(vec.shape[:1], vec.shape[2], storage["pair_ij"].shape[-1]))
+        else:
             # no near-wall list then: an empty clock slot, and a counter saying "rebuild it"
             storage["clock"] = _pad(storage["clock"], K.NCLOCK)
             storage["counters"] = _pad(storage["counters"], K.NCOUNT)
             storage["counters"][..., K.NEAR_WALLS] = -1
-        if fmt == _FORMAT:
-            storage.update(
-                _scratch(
-                    storage["vec"].shape[:1], storage["vec"].shape[2], storage["pair_ij"].shape[-1]
-                )
-            )
         cls = State if bool(np.asarray(arrays["single"])) else Ensemble
         return cls(storage)
 
