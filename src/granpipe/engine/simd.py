@@ -214,7 +214,6 @@ class _Frame:
     """
 
     def __init__(self, context, builder, sig, args, names, full):
-        self.c = context
         self.b = builder
         self.full = full
         self.a = {}
