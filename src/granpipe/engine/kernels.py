@@ -61,6 +61,7 @@ from granpipe.engine.simd import (
     drum_back4_tangent_tail,
     pair_front4,
     pair_front4_tail,
+    speed2_lanes,
     sub4_rows,
     touch_bits4,
 )
@@ -350,26 +351,16 @@ def _kick_drift(vec, sca, dt, thr, spin_on, tangent, finish, want_v2):
 def _v2(vec, h):
     """``sum |v + h F/m|²`` over mobile disks: the speed after a pending second half kick.
 
-    Four partial sums: a fixed order (reproducible) that does not serialise on one add.
+    Four partial sums (lane ``c`` takes components ``k = c mod 4``): a fixed order
+    (reproducible) that does not serialise on one add, summed four-wide
+    (:func:`granpipe.engine.simd.speed2_lanes`).
     """
     v = _flat(vec[VEL])
     f = _flat(vec[FRC])
     im = _flat(vec[IM2])
     mob = _flat(vec[MOB2])
-    s0 = 0.0
-    s1 = 0.0
-    s2 = 0.0
-    s3 = 0.0
     m = v.shape[0] - v.shape[0] % 4
-    for k in range(0, m, 4):
-        u0 = v[k] + h * (f[k] * im[k])
-        u1 = v[k + 1] + h * (f[k + 1] * im[k + 1])
-        u2 = v[k + 2] + h * (f[k + 2] * im[k + 2])
-        u3 = v[k + 3] + h * (f[k + 3] * im[k + 3])
-        s0 += u0 * u0 * mob[k]
-        s1 += u1 * u1 * mob[k + 1]
-        s2 += u2 * u2 * mob[k + 2]
-        s3 += u3 * u3 * mob[k + 3]
+    s0, s1, s2, s3 = speed2_lanes(v, f, im, mob, h, m)
     for k in range(m, v.shape[0]):
         u = v[k] + h * (f[k] * im[k])
         s0 += u * u * mob[k]
