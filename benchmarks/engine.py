@@ -31,9 +31,16 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import tempfile
 import time
 from pathlib import Path
+
+# One BLAS thread, as `make bench` sets, before numpy loads OpenBLAS: the idle thread pools
+# of numpy's and scipy's OpenBLAS slowed the dense box from 37 to 52 ns per particle-step
+# on a 2-vCPU machine (docs/engine_performance.md, session 5).
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
 import numba
 import numpy as np
