@@ -173,3 +173,46 @@ def test_state_saved_in_an_older_format_continues_bit_identically(fmt, kind):
     sim.run(a, 300, tangent=tangent)
     sim.run(b, 300, tangent=tangent)
     assert_identical(a, b)
+
+
+def _stored_arrays(state):
+    return {k: v for k, v in state._s.items() if isinstance(v, np.ndarray) and v.ndim >= 1}
+
+
+def _misaligned(state):
+    """A copy of ``state`` whose arrays all start 16 bytes past a cache line."""
+    out = state.copy()
+    for key, a in _stored_arrays(out).items():
+        raw = np.empty(a.nbytes + 128, dtype=np.uint8)
+        start = (-raw.ctypes.data % 64) + 16
+        b = raw[start : start + a.nbytes].view(a.dtype).reshape(a.shape)
+        b[...] = a
+        out._s[key] = b
+    return out
+
+
+@pytest.mark.parametrize("kind", ["drum", "box"])
+def test_storage_starts_on_cache_lines_and_alignment_does_not_change_bits(kind):
+    """Every way of making a state (new_state, copy, stack, from_arrays, a larger skin)
+    puts its arrays on 64-byte cache lines (the 32-byte per-disk records then never split
+    one); a copy with every array 16 bytes off runs to the same bits."""
+    make, tangent, n = (drum_state, True, 700) if kind == "drum" else (box_state, False, 2000)
+    sim, state = make(3)
+    ens = Ensemble.stack([state, state])
+    restored = State.from_arrays(state.to_arrays())
+    grown = state.copy()
+    sim.replace(skin=4 * float(grown._s["skin"])).run(grown, 1)
+    assert grown._s["pair_xi"].shape[1] > state._s["pair_xi"].shape[1]  # arrays regrown
+    for made in (state, state.copy(), ens, restored, grown):
+        for key, a in _stored_arrays(made).items():
+            assert a.ctypes.data % 64 == 0, key
+            assert a.flags.c_contiguous and a.flags.writeable, key
+    off = _misaligned(state)
+    assert all(a.ctypes.data % 64 == 16 for a in _stored_arrays(off).values())
+    sa, la = run(sim, state, [n], tangent)
+    sb, lb = run(sim, off, [n], tangent)
+    assert all(a.ctypes.data % 64 == 16 for a in _stored_arrays(off).values())  # not moved
+    np.testing.assert_array_equal(sa, sb)
+    if tangent:
+        np.testing.assert_array_equal(la, lb)
+    assert_identical(state, off)
