@@ -362,11 +362,11 @@ def _aligned(storage: dict) -> dict:
 
     numpy promises 16 bytes. The pair gathers load each disk's record ``[x, y, vx, vy]``
     (32 bytes, rows ``XV``/``XT`` of ``vec``) with one vector load; off 32-byte alignment
-    every other record splits a cache line, which cost ~9 % of a forward drum step on the
-    Intel core of docs/engine_performance.md (session 5) and made the speed of a run
-    depend on where ``malloc`` put its arrays. With ``vec`` on a cache line the records
-    are 32-byte aligned for every even number of disks (the record rows start at
-    ``11 * 16 N`` bytes).
+    every other record splits a cache line, which cost 4-14 % of a drum step (forward,
+    tangent) on the Intel core of docs/engine_performance.md (session 5) and made the
+    speed of a run depend on where ``malloc`` put its arrays. With ``vec`` on a cache
+    line the records are 32-byte aligned for every even number of disks (the record rows
+    start at ``11 * 16 N`` bytes).
     """
     return {
         k: _aligned_copy(v) if isinstance(v, np.ndarray) and v.ctypes.data % _ALIGN else v
