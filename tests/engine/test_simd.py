@@ -178,3 +178,28 @@ def test_speed_sum_has_the_four_running_sums_of_the_scalar_loop(n):
     # and it is the kinetic sum it claims to be (to round-off)
     u = vec[K.VEL] + h * vec[K.FRC] * vec[K.IM2]
     assert got == pytest.approx(float((u**2 * vec[K.MOB2]).sum()), rel=1e-14)
+
+
+@pytest.mark.parametrize("mode", [0, 1])
+def test_gather_rows_are_the_relative_records_of_every_listed_pair(mode):
+    """The four-pair gather writes ``r_i - r_j``, ``v_i - v_j`` (and with ``mode`` 1 the
+    tangent vector's differences) of listed pair k into column k of its rows, exactly,
+    for list lengths with every remainder modulo 4, and nothing past the last pair."""
+    pos, radii, masses, is_wall, vel, _ = dense_state(5, shrink=0.99)
+    sim = Simulation(DRUM_LAW, dt=DT_DRUM, wall_disks=WallDisks(omega=0.3), skin=0.2)
+    state = sim.new_state(pos, radii, masses, velocities=vel, is_wall=is_wall)
+    sim.random_tangent(state, np.random.default_rng(2))
+    s = _replica(state)
+    npairs = int(s["counters"][K.N_PAIRS])
+    i = s["pair_ij"][K.PI, :npairs].astype(np.intp)
+    j = s["pair_ij"][K.PJ, :npairs].astype(np.intp)
+    vec = s["vec"]
+    fields = [vec[K.POS], vec[K.VEL]] + ([vec[K.T_POS], vec[K.T_VEL]] if mode == 1 else [])
+    want = np.concatenate([(f[i] - f[j]).T for f in fields])  # rows dx, dy, dvx, dvy, ...
+    for cut in range(4):
+        m = npairs - cut
+        buf = s["buf"]
+        buf[:] = np.nan
+        K._gather(vec, s["sca"], s["pair_ij"], buf, m, mode)
+        np.testing.assert_array_equal(buf[: len(want), :m], want[:, :m])
+        assert np.isnan(buf[: len(want), m:]).all()

@@ -59,10 +59,11 @@ from granpipe.engine.simd import (
     drum_back4_tail,
     drum_back4_tangent,
     drum_back4_tangent_tail,
+    gather4,
+    gather4_tail,
     pair_front4,
     pair_front4_tail,
     speed2_lanes,
-    sub4_rows,
     touch_bits4,
 )
 from granpipe.engine.walls import bottom_height, bottom_velocity, wall_omega
@@ -466,8 +467,9 @@ def _gather(vec, sca, pair_ij, buf, npairs, mode):
     """Relative positions and velocities of every listed pair into contiguous rows.
 
     ``mode`` 1 adds the tangent-vector differences (drum tangent), 2 the two spins (box).
-    One 4-wide subtraction per pair and record from the per-disk records, written first
-    (:func:`granpipe.engine.simd.sub4_rows`, bit-identical to the scalar subtraction).
+    One 4-wide subtraction per pair and record from the per-disk records, written first;
+    four pairs at a time, transposed in registers into four row vectors
+    (:func:`granpipe.engine.simd.gather4`; bit-identical to the scalar subtraction).
     """
     _write_records(vec, mode == 1)
     pi = pair_ij[PI]
@@ -475,12 +477,17 @@ def _gather(vec, sca, pair_ij, buf, npairs, mode):
     cap = buf.shape[1]
     rows = buf.reshape(buf.size)
     xv = _records(vec, XV)
-    for k in range(npairs):
-        sub4_rows(rows, B_DX * cap + k, cap, xv, 4 * np.intp(pi[k]), 4 * np.intp(pj[k]))
+    m4 = npairs - npairs % 4
+    for k in range(0, m4, 4):
+        gather4(xv, pi, pj, k, 4, rows, cap, B_DX * cap)
+    if m4 < npairs:
+        gather4_tail(xv, pi, pj, m4, npairs - m4, rows, cap, B_DX * cap)
     if mode == 1:
         xt = _records(vec, XT)
-        for k in range(npairs):
-            sub4_rows(rows, B_E0 * cap + k, cap, xt, 4 * np.intp(pi[k]), 4 * np.intp(pj[k]))
+        for k in range(0, m4, 4):
+            gather4(xt, pi, pj, k, 4, rows, cap, B_E0 * cap)
+        if m4 < npairs:
+            gather4_tail(xt, pi, pj, m4, npairs - m4, rows, cap, B_E0 * cap)
     elif mode == 2:
         spin = sca[SPIN]
         wi = buf[B_E0]

@@ -1,14 +1,16 @@
-"""Explicit 4-wide vector operations for the pair gathers (numba intrinsics).
+"""Explicit 4-wide vector operations for the pair passes (numba intrinsics).
 
 LLVM does not vectorise the gathers of :mod:`granpipe.engine.kernels` (the pair indices
 are data, and numba leaves LLVM's SLP vectoriser off by default since it miscompiled
 code: numba PR #8852, issues #8705 and #8681), so a scalar gather costs eight loads,
 four subtractions and four stores per pair. With the per-disk records stored as four
-consecutive doubles (``[x, y, vx, vy]``), :func:`sub4_rows` does one ``<4 x double>``
-load from each disk and one subtraction (0.9 ns per pair on the drum pile alone; with
-the copy into the records, the gather takes 1.7 instead of 2.0 ns per pair, and 2.7
-instead of 4.3 with the tangent vector: ``benchmarks/engine_passes.py``). Lane by lane
-the arithmetic is the IEEE arithmetic of the scalar code, so results are bit-identical.
+consecutive doubles (``[x, y, vx, vy]``), :func:`gather4` does one ``<4 x double>`` load
+from each disk and one subtraction per pair, transposes four pairs' differences in
+registers and stores them as four row vectors (on the drum pile, records copy
+included: 2.0 ns per pair scalar on Zen 3, 1.7 with one subtraction per pair and lane
+stores, and on the Intel core of docs/engine_performance.md 4.3 with lane stores against
+2.9 with :func:`gather4`). Lane by lane the arithmetic is the IEEE arithmetic of the
+scalar code, so results are bit-identical.
 
 Numba's on-disk cache keys a kernel on its own source file only: after editing this
 module, delete ``src/granpipe/engine/__pycache__`` so that the kernels are recompiled.
@@ -24,7 +26,7 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-__all__ = ["sub4_rows", "speed2_lanes"]
+__all__ = ["gather4", "gather4_tail", "speed2_lanes"]
 
 _F64 = ir.DoubleType()
 _V4 = ir.VectorType(_F64, 4)
@@ -83,41 +85,6 @@ def speed2_lanes(typingctx, v, f, im, mob, h, m):
         total = builder.load(acc)
         lanes = [builder.extract_element(total, ir.Constant(_I32, c)) for c in range(4)]
         return context.make_tuple(builder, ret, lanes)
-
-    return sig, codegen
-
-
-@intrinsic
-def sub4_rows(typingctx, dst, k, stride, src, i, j):
-    """``dst[k + c*stride] = src[i + c] - src[j + c]`` for ``c = 0..3``: one 4-wide
-    subtraction whose lanes are stored into four rows ``stride`` apart (a transpose of
-    the record into struct-of-arrays rows, which the vectorised contact laws read).
-    """
-    for arg in (dst, src):
-        if not (isinstance(arg, types.Array) and arg.ndim == 1 and arg.dtype == types.float64):
-            return None
-    sig = types.void(dst, k, stride, src, i, j)
-
-    def codegen(context, builder, signature, args):
-        dst_v, k_v, stride_v, src_v, i_v, j_v = args
-        tys = signature.args
-        d = context.make_array(tys[0])(context, builder, dst_v)
-        s = context.make_array(tys[3])(context, builder, src_v)
-        vptr = ir.VectorType(ir.DoubleType(), 4).as_pointer()
-
-        def idx(val, ty):
-            return context.cast(builder, val, ty, types.intp)
-
-        a = builder.load(builder.bitcast(builder.gep(s.data, [idx(i_v, tys[4])]), vptr), align=8)
-        b = builder.load(builder.bitcast(builder.gep(s.data, [idx(j_v, tys[5])]), vptr), align=8)
-        diff = builder.fsub(a, b)
-        pos = idx(k_v, tys[1])
-        step = idx(stride_v, tys[2])
-        for c in range(4):
-            lane = builder.extract_element(diff, ir.Constant(ir.IntType(32), c))
-            builder.store(lane, builder.gep(d.data, [pos]), align=8)
-            pos = builder.add(pos, step)
-        return context.get_dummy_value()
 
     return sig, codegen
 
@@ -494,6 +461,39 @@ def touch_bits4(typingctx, pos, pi, pj, k, ssum):
         return builder.zext(builder.xor(bits, ir.Constant(ir.IntType(4), 15)), _I64)
 
     return sig, codegen
+
+
+_GATHER_ARGS = ("rec", "pi", "pj", "k", "nvalid", "rows", "cap", "off")
+
+
+def _gather4(full):
+    """Intrinsic ``(rec, pi, pj, k, nvalid, rows, cap, off) -> None``: for the listed pairs
+    ``k .. k+nvalid-1``, ``rows[off + c*cap + k'] = rec[4 pi[k'] + c] - rec[4 pj[k'] + c]``
+    (``c = 0..3``), i.e. the relative records of four pairs stored as four rows.
+
+    One four-wide load from each disk's record and one subtraction per pair; the four
+    pairs' differences are transposed in registers and stored as four vectors (sixteen
+    lane extracts and scalar stores before: a third slower on the Intel core). Lane by
+    lane the IEEE subtraction of the scalar code.
+    """
+
+    def typer(typingctx, rec, pi, pj, k, nvalid, rows, cap, off):
+        sig = types.void(rec, pi, pj, k, nvalid, rows, cap, off)
+
+        def codegen(context, builder, signature, args):
+            fr = _Frame(context, builder, signature, args, _GATHER_ARGS, full)
+            diffs = fr.record_diff("rec", fr.index("pi"), fr.index("pj"))
+            for c, v in enumerate(diffs):
+                fr.store_lanes("rows", v, builder.add(fr.val["off"], fr.row(c)))
+            return context.get_dummy_value()
+
+        return sig, codegen
+
+    return intrinsic(typer)
+
+
+gather4 = _gather4(True)
+gather4_tail = _gather4(False)
 
 
 _FRONT_ARGS = ("rec", "rect", "pi", "pj", "k", "nvalid", "ssum", "slim", "touch", "rows", "cap")
