@@ -136,9 +136,9 @@ def test_saved_and_restored_state_continues_bit_identically(kind, tmp_path):
     sim, a = make(4)
     sim.run(a, n, tangent=tangent)
     saved = a.to_arrays()
-    # scratch (pair buffers, the old list, per-disk records) is not saved
+    # scratch (pair buffers, the old list) is not saved
     assert not {"buf", "old_j", "old_xi", "old_start"} & set(saved)
-    assert saved["vec"].shape[1] == K.XV
+    assert saved["vec"].shape[1] == K.NV
     np.savez(tmp_path / "state.npz", **saved)
     with np.load(tmp_path / "state.npz") as saved:
         b = State.from_arrays(dict(saved))
@@ -151,8 +151,8 @@ def test_saved_and_restored_state_continues_bit_identically(kind, tmp_path):
 @pytest.mark.parametrize("kind", ["drum", "box"])
 @pytest.mark.parametrize("fmt", [2, 3])
 def test_state_saved_in_an_older_format_continues_bit_identically(fmt, kind):
-    """States saved in engine formats 2 (scratch saved but no per-disk record rows in
-    ``vec``, one-byte touch flags) and 3 (all scratch saved), both without the near-wall
+    """States saved in engine formats 2 (scratch saved, one-byte touch flags) and 3 (all
+    scratch saved, four per-disk record rows in ``vec``), both without the near-wall
     list's clock slot and counter, load and continue exactly as the state they were saved
     from: the scratch is rewritten before it is read, the near-wall list rebuilt."""
     make, tangent = (drum_state, True) if kind == "drum" else (box_state, False)
@@ -167,7 +167,9 @@ def test_state_saved_in_an_older_format_continues_bit_identically(fmt, kind):
     if fmt == 2:
         old["touch"] = old["touch"].astype(np.uint8)
     else:
-        old["vec"] = a._s["vec"].copy()
+        # format 3 also saved four rows of per-disk records (scratch, now gone)
+        junk = np.full(a._s["vec"].shape[:1] + (4,) + a._s["vec"].shape[2:], np.nan)
+        old["vec"] = np.concatenate([a._s["vec"], junk], axis=1)
     b = State.from_arrays(old)
     assert b._s["vec"].shape == a._s["vec"].shape
     sim.run(a, 300, tangent=tangent)
@@ -194,8 +196,8 @@ def _misaligned(state):
 @pytest.mark.parametrize("kind", ["drum", "box"])
 def test_storage_starts_on_cache_lines_and_alignment_does_not_change_bits(kind):
     """Every way of making a state (new_state, copy, stack, from_arrays, a larger skin)
-    puts its arrays on 64-byte cache lines (the 32-byte per-disk records then never split
-    one); a copy with every array 16 bytes off runs to the same bits."""
+    puts its arrays on 64-byte cache lines (four-wide loads of the pair rows then never
+    split one); a copy with every array 16 bytes off runs to the same bits."""
     make, tangent, n = (drum_state, True, 700) if kind == "drum" else (box_state, False, 2000)
     sim, state = make(3)
     ens = Ensemble.stack([state, state])

@@ -70,11 +70,7 @@ from granpipe.engine.walls import bottom_height, bottom_velocity, wall_omega
 
 # rows of vec (NV, N, 2)
 POS, VEL, FRC, POS_BUILD, WALL_REF, T_POS, T_VEL, T_FRC, IM2, MOB2, MG = range(11)
-# two rows each, read as one flat (4N,) array of per-disk records (see :func:`_records`):
-# [x, y, vx, vy] and [ex, ey, evx, evy], copied from the rows above before a gather
-XV = 11
-XT = 13
-NV = 15
+NV = 11
 # rows of sca (NS, N)
 RADIUS, INV_MASS, INV_INERTIA, SPIN, TORQUE, T_PREV, XI_LEFT, XI_RIGHT, XI_BOTTOM = range(9)
 NS = 9
@@ -127,28 +123,6 @@ def _fail(info, status, particle, other, step):
 def _flat(a):
     """A (N, 2) C-contiguous array as a flat (2N,) view."""
     return a.reshape(a.size)
-
-
-@njit
-def _records(vec, row):
-    """Rows ``row, row + 1`` of ``vec`` (NV, N, 2) as one flat (4N,) array of records."""
-    return vec[row : row + 2].reshape(4 * vec.shape[1])
-
-
-@njit
-def _write_records(vec, tangent):
-    """Copy positions and velocities (and the tangent vector) into the per-disk records."""
-    for src_p, src_v, dst in ((POS, VEL, XV), (T_POS, T_VEL, XT)):
-        if dst == XT and not tangent:
-            break
-        p = _flat(vec[src_p])
-        v = _flat(vec[src_v])
-        r = _records(vec, dst)
-        for i in range(p.shape[0] // 2):
-            r[4 * i] = p[2 * i]
-            r[4 * i + 1] = p[2 * i + 1]
-            r[4 * i + 2] = v[2 * i]
-            r[4 * i + 3] = v[2 * i + 1]
 
 
 # --------------------------------------------------------------------------- walls, list
@@ -467,28 +441,25 @@ def _gather(vec, sca, pair_ij, buf, npairs, mode):
     """Relative positions and velocities of every listed pair into contiguous rows.
 
     ``mode`` 1 adds the tangent-vector differences (drum tangent), 2 the two spins (box).
-    One 4-wide subtraction per pair and record from the per-disk records, written first;
-    four pairs at a time, transposed in registers into four row vectors
-    (:func:`granpipe.engine.simd.gather4`; bit-identical to the scalar subtraction).
+    Four pairs at a time from the flat position and velocity rows, the lanes stored as
+    row vectors (:func:`granpipe.engine.simd.gather4`; bit-identical to the scalar
+    subtraction).
     """
-    _write_records(vec, mode == 1)
     pi = pair_ij[PI]
     pj = pair_ij[PJ]
     cap = buf.shape[1]
     rows = buf.reshape(buf.size)
-    xv = _records(vec, XV)
     m4 = npairs - npairs % 4
-    for k in range(0, m4, 4):
-        gather4(xv, pi, pj, k, 4, rows, cap, B_DX * cap)
-    if m4 < npairs:
-        gather4_tail(xv, pi, pj, m4, npairs - m4, rows, cap, B_DX * cap)
-    if mode == 1:
-        xt = _records(vec, XT)
+    for src_p, src_v, row in ((POS, VEL, B_DX), (T_POS, T_VEL, B_E0)):
+        if row == B_E0 and mode != 1:
+            break
+        p = _flat(vec[src_p])
+        v = _flat(vec[src_v])
         for k in range(0, m4, 4):
-            gather4(xt, pi, pj, k, 4, rows, cap, B_E0 * cap)
+            gather4(p, v, pi, pj, k, 4, rows, cap, row * cap)
         if m4 < npairs:
-            gather4_tail(xt, pi, pj, m4, npairs - m4, rows, cap, B_E0 * cap)
-    elif mode == 2:
+            gather4_tail(p, v, pi, pj, m4, npairs - m4, rows, cap, row * cap)
+    if mode == 2:
         spin = sca[SPIN]
         wi = buf[B_E0]
         wj = buf[B_E1]
@@ -816,7 +787,8 @@ def _drum_pair_pass(vec, pair_ij, pair_c, buf, touch, law, npairs, tangent):
     over gravity; returns ``(touching pairs, some pair too deep, some touch flag changed)``.
 
     Two vectorised halves, four pairs at a time (:mod:`granpipe.engine.simd`): the
-    geometry (relative records, ``r``, normal; bound by the square root and division),
+    geometry (relative positions and velocities, ``r``, normal; bound by the square root
+    and division),
     then the law and the scatter. Same arithmetic and summation order as the separate
     gather, law and scatter passes (:func:`_gather`, :func:`_drum_pairs`,
     :func:`_scatter`), so the same bits.
@@ -829,9 +801,10 @@ def _drum_pair_pass(vec, pair_ij, pair_c, buf, touch, law, npairs, tangent):
     if tangent:
         for k in range(tf.shape[0]):
             tf[k] = 0.0
-    _write_records(vec, tangent)
-    rec = _records(vec, XV)
-    rect = _records(vec, XT) if tangent else rec[:0]
+    p = _flat(vec[POS])
+    v = _flat(vec[VEL])
+    tp = _flat(vec[T_POS]) if tangent else p[:0]
+    tv = _flat(vec[T_VEL]) if tangent else v[:0]
     pi = pair_ij[PI]
     pj = pair_ij[PJ]
     ssum = pair_c[P_SUM]
@@ -844,9 +817,10 @@ def _drum_pair_pass(vec, pair_ij, pair_c, buf, touch, law, npairs, tangent):
     nchanged = 0
     for k in range(0, npairs, 4):
         if k < m4:
-            c = pair_front4(rec, rect, pi, pj, k, 4, ssum, slim, touch, rows, cap)
+            c = pair_front4(p, v, tp, tv, pi, pj, k, 4, ssum, slim, touch, rows, cap)
         else:
-            c = pair_front4_tail(rec, rect, pi, pj, k, npairs - k, ssum, slim, touch, rows, cap)
+            nv = npairs - k
+            c = pair_front4_tail(p, v, tp, tv, pi, pj, k, nv, ssum, slim, touch, rows, cap)
         ncon += c & 7
         nbad += (c >> 3) & 7
         nchanged += c >> 6

@@ -3,14 +3,15 @@
 LLVM does not vectorise the gathers of :mod:`granpipe.engine.kernels` (the pair indices
 are data, and numba leaves LLVM's SLP vectoriser off by default since it miscompiled
 code: numba PR #8852, issues #8705 and #8681), so a scalar gather costs eight loads,
-four subtractions and four stores per pair. With the per-disk records stored as four
-consecutive doubles (``[x, y, vx, vy]``), :func:`gather4` does one ``<4 x double>`` load
-from each disk and one subtraction per pair, transposes four pairs' differences in
-registers and stores them as four row vectors (on the drum pile, records copy
-included: 2.0 ns per pair scalar on Zen 3, 1.7 with one subtraction per pair and lane
-stores, and on the Intel core of docs/engine_performance.md 4.3 with lane stores against
-2.9 with :func:`gather4`). Lane by lane the arithmetic is the IEEE arithmetic of the
-scalar code, so results are bit-identical.
+four subtractions and four stores per pair. :func:`gather4` takes four listed pairs at
+once: per pair and field (positions, velocities) one two-wide load from each disk's
+``(x, y)`` in the flat ``2N`` row and one subtraction, the lanes combined in registers
+and stored as row vectors. On the drum pile (Intel core of docs/engine_performance.md,
+session 5) it takes 1.8 ns per pair, against 4.3 for one four-wide subtraction per pair
+from copied per-disk records ``[x, y, vx, vy]`` with lane stores, and 2.9 for those
+records with four pairs' differences transposed in registers (the copy into the
+records cost more than the loads it saved). Lane by lane the arithmetic is the IEEE
+arithmetic of the scalar code, so results are bit-identical.
 
 Numba's on-disk cache keys a kernel on its own source file only: after editing this
 module, delete ``src/granpipe/engine/__pycache__`` so that the kernels are recompiled.
@@ -299,11 +300,6 @@ class _Frame:
             self.b, self.b.shuffle_vector(v, v, ir.Constant(ir.VectorType(_I32, 4), [0] * 4))
         )
 
-    def record_diff(self, name, i, j):
-        """Records ``name[4i .. 4i+3] - name[4j .. 4j+3]`` of the four pairs, transposed into
-        four lanes per field (field f of pair lane l in lane l of the f-th result)."""
-        return [_Lanes(self.b, v) for v in _transpose4(self.b, self._diffs(name, i, j, _V4))]
-
     def _diffs(self, name, i, j, vt):
         """Per pair, ``name[w i .. w i + w-1] - name[w j .. w j + w-1]`` as one vector of
         type ``vt`` (``w`` lanes): one load from each disk's run of ``w`` values."""
@@ -416,24 +412,6 @@ class _Frame:
         return prev, accs
 
 
-def _transpose4(b, rows):
-    mask = ir.VectorType(_I32, 4)
-
-    def sh(x, y, m):
-        return b.shuffle_vector(x, y, ir.Constant(mask, m))
-
-    t0 = sh(rows[0], rows[1], [0, 4, 2, 6])
-    t1 = sh(rows[0], rows[1], [1, 5, 3, 7])
-    t2 = sh(rows[2], rows[3], [0, 4, 2, 6])
-    t3 = sh(rows[2], rows[3], [1, 5, 3, 7])
-    return [
-        sh(t0, t2, [0, 1, 4, 5]),
-        sh(t1, t3, [0, 1, 4, 5]),
-        sh(t0, t2, [2, 3, 6, 7]),
-        sh(t1, t3, [2, 3, 6, 7]),
-    ]
-
-
 def _sqrt(x):
     return _Lanes(x.b, _call(x.b, "llvm.sqrt.v4f64", [x.v]))
 
@@ -463,28 +441,27 @@ def touch_bits4(typingctx, pos, pi, pj, k, ssum):
     return sig, codegen
 
 
-_GATHER_ARGS = ("rec", "pi", "pj", "k", "nvalid", "rows", "cap", "off")
+_GATHER_ARGS = ("p", "v", "pi", "pj", "k", "nvalid", "rows", "cap", "off")
 
 
 def _gather4(full):
-    """Intrinsic ``(rec, pi, pj, k, nvalid, rows, cap, off) -> None``: for the listed pairs
-    ``k .. k+nvalid-1``, ``rows[off + c*cap + k'] = rec[4 pi[k'] + c] - rec[4 pj[k'] + c]``
-    (``c = 0..3``), i.e. the relative records of four pairs stored as four rows.
+    """Intrinsic ``(p, v, pi, pj, k, nvalid, rows, cap, off) -> None``: for the listed
+    pairs ``k' = k .. k+nvalid-1``, the relative positions and velocities into four rows,
+    ``rows[off + c*cap + k']`` = ``p[2i + c] - p[2j + c]`` (c = 0, 1) and
+    ``v[2i + c-2] - v[2j + c-2]`` (c = 2, 3), with ``i, j = pi[k'], pj[k']`` and ``p, v``
+    flat ``2N`` rows: one two-wide load and subtraction per disk and field
+    (:meth:`_Frame.xy_diff`), four pairs' lanes stored as vectors."""
 
-    One four-wide load from each disk's record and one subtraction per pair; the four
-    pairs' differences are transposed in registers and stored as four vectors (sixteen
-    lane extracts and scalar stores before: a third slower on the Intel core). Lane by
-    lane the IEEE subtraction of the scalar code.
-    """
-
-    def typer(typingctx, rec, pi, pj, k, nvalid, rows, cap, off):
-        sig = types.void(rec, pi, pj, k, nvalid, rows, cap, off)
+    def typer(typingctx, p, v, pi, pj, k, nvalid, rows, cap, off):
+        sig = types.void(p, v, pi, pj, k, nvalid, rows, cap, off)
 
         def codegen(context, builder, signature, args):
             fr = _Frame(context, builder, signature, args, _GATHER_ARGS, full)
-            diffs = fr.record_diff("rec", fr.index("pi"), fr.index("pj"))
-            for c, v in enumerate(diffs):
-                fr.store_lanes("rows", v, builder.add(fr.val["off"], fr.row(c)))
+            i = fr.index("pi")
+            j = fr.index("pj")
+            diffs = fr.xy_diff("p", i, j) + fr.xy_diff("v", i, j)
+            for c, val in enumerate(diffs):
+                fr.store_lanes("rows", val, builder.add(fr.val["off"], fr.row(c)))
             return context.get_dummy_value()
 
         return sig, codegen
@@ -496,30 +473,46 @@ gather4 = _gather4(True)
 gather4_tail = _gather4(False)
 
 
-_FRONT_ARGS = ("rec", "rect", "pi", "pj", "k", "nvalid", "ssum", "slim", "touch", "rows", "cap")
+_FRONT_ARGS = (
+    "p",
+    "v",
+    "tp",
+    "tv",
+    "pi",
+    "pj",
+    "k",
+    "nvalid",
+    "ssum",
+    "slim",
+    "touch",
+    "rows",
+    "cap",
+)
 
 
 def _pair_front4(full):
-    """Intrinsic ``(rec, rect, pi, pj, k, nvalid, ssum, slim, touch, rows, cap) -> code``:
+    """Intrinsic ``(p, v, tp, tv, pi, pj, k, nvalid, ssum, slim, touch, rows, cap) -> code``:
     the geometric half of a pair pass for the listed pairs ``k .. k+nvalid-1``.
 
-    From the per-disk records ``rec`` (flat ``4N``: ``x, y, vx, vy``) it forms the
-    relative position and velocity, ``r``, ``1/r``, the unit normal and ``delta = r -
-    (a_i + a_j)``, and writes them to rows of the flat pair buffer ``rows`` (row length
-    ``cap``) for :func:`_drum_back4`; with ``rect`` non-empty (the tangent records) also
-    the relative tangent vector. It stores the touch flags (``r² <= (a_i + a_j)²``) and
-    returns ``touching + 8 deep + 64 changed``: counts of touching pairs, of pairs
-    deeper than their bound ``slim`` and of touch flags that changed.
+    From the flat ``2N`` positions ``p`` and velocities ``v`` (as :func:`gather4`) it
+    forms the relative position and velocity, ``r``, ``1/r``, the unit normal and
+    ``delta = r - (a_i + a_j)``, and writes them to rows of the flat pair buffer ``rows``
+    (row length ``cap``) for :func:`_drum_back4`; with ``tp`` non-empty (the tangent
+    vector's position and velocity parts ``tp, tv``) also the relative tangent vector.
+    It stores the touch flags (``r² <= (a_i + a_j)²``) and returns ``touching + 8 deep +
+    64 changed``: counts of touching pairs, of pairs deeper than their bound ``slim`` and
+    of touch flags that changed.
     """
 
-    def typer(typingctx, rec, rect, pi, pj, k, nvalid, ssum, slim, touch, rows, cap):
-        sig = types.int64(rec, rect, pi, pj, k, nvalid, ssum, slim, touch, rows, cap)
+    def typer(typingctx, p, v, tp, tv, pi, pj, k, nvalid, ssum, slim, touch, rows, cap):
+        sig = types.int64(p, v, tp, tv, pi, pj, k, nvalid, ssum, slim, touch, rows, cap)
 
         def codegen(context, builder, signature, args):
             fr = _Frame(context, builder, signature, args, _FRONT_ARGS, full)
             i = fr.index("pi")
             j = fr.index("pj")
-            dx, dy, dvx, dvy = fr.record_diff("rec", i, j)
+            dx, dy = fr.xy_diff("p", i, j)
+            dvx, dvy = fr.xy_diff("v", i, j)
             s = fr.lanes("ssum")
             lim = fr.lanes("slim")
             r2 = dx * dx + dy * dy
@@ -535,9 +528,10 @@ def _pair_front4(full):
             out += [(_B_DELTA, delta), (_B_INV_R, inv_r)]
             for row, v in out:
                 fr.store_lanes("rows", v, fr.row(row))
-            with builder.if_then(builder.icmp_signed(">", fr.size("rect"), ir.Constant(_I64, 0))):
-                for c, v in enumerate(fr.record_diff("rect", i, j)):
-                    fr.store_lanes("rows", v, fr.row(_B_E0 + c))
+            with builder.if_then(builder.icmp_signed(">", fr.size("tp"), ir.Constant(_I64, 0))):
+                e = fr.xy_diff("tp", i, j) + fr.xy_diff("tv", i, j)
+                for c, val in enumerate(e):
+                    fr.store_lanes("rows", val, fr.row(_B_E0 + c))
             code = builder.add(fr.count(t64), builder.mul(bad, ir.Constant(_I64, 8)))
             return builder.add(code, builder.mul(changed, ir.Constant(_I64, 64)))
 

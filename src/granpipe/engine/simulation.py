@@ -119,9 +119,7 @@ class Ensemble:
         for key, val in self._s.items():
             if key in _SCRATCH_KEYS:
                 continue
-            if key == "vec":
-                out[key] = val[:, : K.XV].copy()
-            elif isinstance(val, np.ndarray):
+            if isinstance(val, np.ndarray):
                 out[key] = val.copy()
             else:
                 out[key] = np.asarray(val)
@@ -149,12 +147,9 @@ class Ensemble:
                 storage[key] = tuple(float(c) for c in a)
             else:
                 storage[key] = np.ascontiguousarray(a).copy()
-        if fmt != 3:
-            # formats 2 and 4 have no per-disk record rows (scratch, rewritten before every
-            # gather); format 4 has no other scratch either (recreated here)
-            vec = storage["vec"]
-            pad = np.zeros((vec.shape[0], K.NV - vec.shape[1]) + vec.shape[2:])
-            storage["vec"] = np.ascontiguousarray(np.concatenate([vec, pad], axis=1))
+        if fmt == 3:
+            # format 3 kept four rows of per-disk records (scratch) after the eleven
+            storage["vec"] = np.ascontiguousarray(storage["vec"][:, : K.NV])
         if fmt == 2:
             # one-byte touch flags then (64-bit now: the law passes then need no packing)
             storage["touch"] = storage["touch"].astype(np.int64)
@@ -360,13 +355,11 @@ def _aligned_copy(a):
 def _aligned(storage: dict) -> dict:
     """``storage`` with every array on a 64-byte cache line (copied where it is not).
 
-    numpy promises 16 bytes. The pair gathers load each disk's record ``[x, y, vx, vy]``
-    (32 bytes, rows ``XV``/``XT`` of ``vec``) with one vector load; off 32-byte alignment
-    every other record splits a cache line, which cost 4-14 % of a drum step (forward,
-    tangent) on the Intel core of docs/engine_performance.md (session 5) and made the
-    speed of a run depend on where ``malloc`` put its arrays. With ``vec`` on a cache
-    line the records are 32-byte aligned for every even number of disks (the record rows
-    start at ``11 * 16 N`` bytes).
+    numpy promises 16 bytes, and a run's speed then depended on where ``malloc`` put its
+    arrays: with the 32-byte per-disk records the pair gathers once read, 16 bytes off a
+    line cost 4-14 % of a drum step on the Intel core of docs/engine_performance.md
+    (session 5). The vector loads and stores of the pair rows (four doubles from an index
+    that is a multiple of 4) never split a line when the rows start on one.
     """
     return {
         k: _aligned_copy(v) if isinstance(v, np.ndarray) and v.ctypes.data % _ALIGN else v
