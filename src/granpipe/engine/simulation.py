@@ -356,10 +356,10 @@ def _aligned(storage: dict) -> dict:
     """``storage`` with every array on a 64-byte cache line (copied where it is not).
 
     numpy promises 16 bytes, and a run's speed then depended on where ``malloc`` put its
-    arrays: with the 32-byte per-disk records the pair gathers once read, 16 bytes off a
-    line cost 4-14 % of a drum step on the Intel core of docs/engine_performance.md
-    (session 5). The vector loads and stores of the pair rows (four doubles from an index
-    that is a multiple of 4) never split a line when the rows start on one.
+    arrays: 16 bytes off a line cost 8-9 % of a step (drum forward and tangent, box
+    crystal) on the Intel core of docs/engine_performance.md (session 5). The vector
+    loads and stores of the pair rows (four doubles from an index that is a multiple of
+    4) never split a line when the rows start on one.
     """
     return {
         k: _aligned_copy(v) if isinstance(v, np.ndarray) and v.ctypes.data % _ALIGN else v
