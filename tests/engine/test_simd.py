@@ -180,11 +180,12 @@ def test_speed_sum_has_the_four_running_sums_of_the_scalar_loop(n):
     assert got == pytest.approx(float((u**2 * vec[K.MOB2]).sum()), rel=1e-14)
 
 
-@pytest.mark.parametrize("mode", [0, 1])
-def test_gather_rows_are_the_relative_records_of_every_listed_pair(mode):
-    """The four-pair gather writes ``r_i - r_j``, ``v_i - v_j`` (and with ``mode`` 1 the
-    tangent vector's differences) of listed pair k into column k of its rows, exactly,
-    for list lengths with every remainder modulo 4, and nothing past the last pair."""
+@pytest.mark.parametrize("mode", [0, 1, 2])
+def test_gather_rows_are_the_relative_coordinates_of_every_listed_pair(mode):
+    """The four-pair gather writes ``r_i - r_j``, ``v_i - v_j`` (with ``mode`` 1 also the
+    tangent vector's differences, with 2 the spins ``w_i``, ``w_j``) of listed pair k
+    into column k of its rows, exactly, for list lengths with every remainder modulo 4,
+    and nothing past the last pair."""
     pos, radii, masses, is_wall, vel, _ = dense_state(5, shrink=0.99)
     sim = Simulation(DRUM_LAW, dt=DT_DRUM, wall_disks=WallDisks(omega=0.3), skin=0.2)
     state = sim.new_state(pos, radii, masses, velocities=vel, is_wall=is_wall)
@@ -196,6 +197,10 @@ def test_gather_rows_are_the_relative_records_of_every_listed_pair(mode):
     vec = s["vec"]
     fields = [vec[K.POS], vec[K.VEL]] + ([vec[K.T_POS], vec[K.T_VEL]] if mode == 1 else [])
     want = np.concatenate([(f[i] - f[j]).T for f in fields])  # rows dx, dy, dvx, dvy, ...
+    if mode == 2:
+        w = s["sca"][K.SPIN]
+        w[:] = np.random.default_rng(3).normal(size=w.shape)
+        want = np.concatenate([want, [w[i], w[j]]])
     for cut in range(4):
         m = npairs - cut
         buf = s["buf"]

@@ -60,6 +60,8 @@ from granpipe.engine.simd import (
     drum_back4_tangent,
     drum_back4_tangent_tail,
     gather4,
+    gather4_spins,
+    gather4_spins_tail,
     gather4_tail,
     pair_front4,
     pair_front4_tail,
@@ -450,22 +452,29 @@ def _gather(vec, sca, pair_ij, buf, npairs, mode):
     cap = buf.shape[1]
     rows = buf.reshape(buf.size)
     m4 = npairs - npairs % 4
-    for src_p, src_v, row in ((POS, VEL, B_DX), (T_POS, T_VEL, B_E0)):
-        if row == B_E0 and mode != 1:
-            break
-        p = _flat(vec[src_p])
-        v = _flat(vec[src_v])
-        for k in range(0, m4, 4):
-            gather4(p, v, pi, pj, k, 4, rows, cap, row * cap)
-        if m4 < npairs:
-            gather4_tail(p, v, pi, pj, m4, npairs - m4, rows, cap, row * cap)
+    p = _flat(vec[POS])
+    v = _flat(vec[VEL])
     if mode == 2:
-        spin = sca[SPIN]
-        wi = buf[B_E0]
-        wj = buf[B_E1]
-        for k in range(npairs):
-            wi[k] = spin[pi[k]]
-            wj[k] = spin[pj[k]]
+        # the two spins (rows B_E0, B_E1) in the same pass
+        w = sca[SPIN]
+        at = B_DX * cap
+        wat = B_E0 * cap
+        for k in range(0, m4, 4):
+            gather4_spins(p, v, pi, pj, k, 4, rows, cap, at, w, wat)
+        if m4 < npairs:
+            gather4_spins_tail(p, v, pi, pj, m4, npairs - m4, rows, cap, at, w, wat)
+        return
+    for k in range(0, m4, 4):
+        gather4(p, v, pi, pj, k, 4, rows, cap, B_DX * cap)
+    if m4 < npairs:
+        gather4_tail(p, v, pi, pj, m4, npairs - m4, rows, cap, B_DX * cap)
+    if mode == 1:
+        tp = _flat(vec[T_POS])
+        tv = _flat(vec[T_VEL])
+        for k in range(0, m4, 4):
+            gather4(tp, tv, pi, pj, k, 4, rows, cap, B_E0 * cap)
+        if m4 < npairs:
+            gather4_tail(tp, tv, pi, pj, m4, npairs - m4, rows, cap, B_E0 * cap)
 
 
 @njit

@@ -27,7 +27,7 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-__all__ = ["gather4", "gather4_tail", "speed2_lanes"]
+__all__ = ["gather4", "gather4_spins", "gather4_spins_tail", "gather4_tail", "speed2_lanes"]
 
 _F64 = ir.DoubleType()
 _V4 = ir.VectorType(_F64, 4)
@@ -441,36 +441,53 @@ def touch_bits4(typingctx, pos, pi, pj, k, ssum):
     return sig, codegen
 
 
-_GATHER_ARGS = ("p", "v", "pi", "pj", "k", "nvalid", "rows", "cap", "off")
+_GATHER_ARGS = ("p", "v", "pi", "pj", "k", "nvalid", "rows", "cap", "off", "w", "woff")
 
 
-def _gather4(full):
-    """Intrinsic ``(p, v, pi, pj, k, nvalid, rows, cap, off) -> None``: for the listed
-    pairs ``k' = k .. k+nvalid-1``, the relative positions and velocities into four rows,
-    ``rows[off + c*cap + k']`` = ``p[2i + c] - p[2j + c]`` (c = 0, 1) and
+def _gather4(full, spins):
+    """Intrinsic ``(p, v, pi, pj, k, nvalid, rows, cap, off[, w, woff]) -> None``: for the
+    listed pairs ``k' = k .. k+nvalid-1``, the relative positions and velocities into four
+    rows, ``rows[off + c*cap + k']`` = ``p[2i + c] - p[2j + c]`` (c = 0, 1) and
     ``v[2i + c-2] - v[2j + c-2]`` (c = 2, 3), with ``i, j = pi[k'], pj[k']`` and ``p, v``
     flat ``2N`` rows: one two-wide load and subtraction per disk and field
-    (:meth:`_Frame.xy_diff`), four pairs' lanes stored as vectors."""
+    (:meth:`_Frame.xy_diff`), four pairs' lanes stored as vectors. With ``spins``, also
+    the two spins ``w[i]``, ``w[j]`` into ``rows[woff + k']`` and ``rows[woff + cap + k']``.
+    """
 
-    def typer(typingctx, p, v, pi, pj, k, nvalid, rows, cap, off):
-        sig = types.void(p, v, pi, pj, k, nvalid, rows, cap, off)
+    def codegen(context, builder, signature, args):
+        fr = _Frame(context, builder, signature, args, _GATHER_ARGS, full)
+        i = fr.index("pi")
+        j = fr.index("pj")
+        diffs = fr.xy_diff("p", i, j) + fr.xy_diff("v", i, j)
+        for c, val in enumerate(diffs):
+            fr.store_lanes("rows", val, builder.add(fr.val["off"], fr.row(c)))
+        if spins:
+            for c, idx in enumerate((i, j)):
+                lanes = ir.Constant(_V4, ir.Undefined)
+                for lane, il in enumerate(idx):
+                    x = fr.scalar("w", il)
+                    lanes = builder.insert_element(lanes, x, ir.Constant(_I32, lane))
+                at = builder.add(fr.val["woff"], fr.row(c))
+                fr.store_lanes("rows", _Lanes(builder, lanes), at)
+        return context.get_dummy_value()
 
-        def codegen(context, builder, signature, args):
-            fr = _Frame(context, builder, signature, args, _GATHER_ARGS, full)
-            i = fr.index("pi")
-            j = fr.index("pj")
-            diffs = fr.xy_diff("p", i, j) + fr.xy_diff("v", i, j)
-            for c, val in enumerate(diffs):
-                fr.store_lanes("rows", val, builder.add(fr.val["off"], fr.row(c)))
-            return context.get_dummy_value()
+    if spins:
 
-        return sig, codegen
+        def typer(typingctx, p, v, pi, pj, k, nvalid, rows, cap, off, w, woff):
+            return types.void(p, v, pi, pj, k, nvalid, rows, cap, off, w, woff), codegen
+
+    else:
+
+        def typer(typingctx, p, v, pi, pj, k, nvalid, rows, cap, off):
+            return types.void(p, v, pi, pj, k, nvalid, rows, cap, off), codegen
 
     return intrinsic(typer)
 
 
-gather4 = _gather4(True)
-gather4_tail = _gather4(False)
+gather4 = _gather4(True, False)
+gather4_tail = _gather4(False, False)
+gather4_spins = _gather4(True, True)
+gather4_spins_tail = _gather4(False, True)
 
 
 _FRONT_ARGS = (
