@@ -28,13 +28,14 @@ steps exactly as ``(r, v, F)`` is.
 
 Performance layout (measured on the drum pile and the box crystal with
 ``benchmarks/engine_passes.py``): the pair forces run in three passes over the flat
-pair list — gather the relative coordinates into contiguous buffers (loops of at most
-four rows: eight run out of registers and spill), evaluate the contact law on them (a
-loop LLVM vectorises: the law leaves are written with selects only), scatter the
-forces — because LLVM does not emit hardware gathers on this CPU and the fused scalar
-loop is latency bound. The scatter is one flat pass too: short per-disk inner loops
-mispredict their exits (that cost more than the arithmetic), and the owner's sums stay
-in registers until its row ends. The per-disk passes work on flat ``2N`` arrays and
+pair list — gather the relative coordinates into contiguous rows (four pairs at a time
+from the flat position and velocity rows, stored as row vectors:
+:func:`granpipe.engine.simd.gather4`), evaluate the contact law on them (a loop LLVM
+vectorises: the law leaves are written with selects only), scatter the forces —
+because LLVM does not emit hardware gathers here and a fused loop is latency bound.
+The scatter is one flat pass too: short per-disk inner loops mispredict their exits
+(that cost more than the arithmetic), and the owner's sums stay in registers until its
+row ends. The per-disk passes work on flat ``2N`` arrays and
 reduce flags by integer counts so that they vectorise; bad states are located only
 after a flag is raised. The second half kick of a step is done in the pass of the next
 step's first kick (same force, same operations). Flat-wall contacts are looked for only
