@@ -1,0 +1,189 @@
+"""Engine A/B: a git revision against the working tree, interleaved in one process.
+
+    .venv/bin/python benchmarks/engine_ab.py REV [--systems df,dt,bc,bd] [--rounds 24]
+
+On a shared VM the speed of a process can flip between levels ~1.4x apart for tens of
+seconds (docs/engine_performance.md, session 5), so medians of separate processes do not
+compare versions. This script imports ``src/granpipe`` of revision ``REV`` as a renamed
+package (``granpipe_ab_<sha>``, exported with ``git archive`` into the system temp folder
+and compiled there once) beside the working tree's ``granpipe``, builds the benchmark
+systems of ``benchmarks/engine.py`` from the same settled states with both, and times
+short chunks alternately (A B, then B A, ...). Both states are put on 64-byte cache lines
+(with the working tree's ``simulation._aligned``), so that the ratio measures code, not
+where ``malloc`` put the arrays.
+
+Systems: ``df`` drum forward, ``dt`` drum with tangent dynamics, ``bc`` box crystal,
+``bd`` driven box (a drive period split into ``rounds`` chunks). Printed per system: the
+fastest chunk and the median chunk of each version (ns per particle-step; drum per
+mobile disk) and the median of the per-round ratios new/old. The last line is one JSON
+object ``{system: ratio}``. Compare a revision with itself first (``REV`` = ``HEAD`` on a
+clean tree): the ratios then show the harness's own bias.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+# One BLAS thread before numpy loads (see benchmarks/engine.py).
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import engine as bench
+import numba
+import numpy as np
+
+from granpipe.engine.simulation import _aligned
+
+REPO = Path(__file__).resolve().parents[1]
+SYSTEMS = ("df", "dt", "bc", "bd")
+
+
+def export(rev: str) -> str:
+    """Export ``src/granpipe`` at ``rev`` as package ``granpipe_ab_<sha>``; return its name."""
+    sha = subprocess.run(
+        ["git", "-C", str(REPO), "rev-parse", "--short=10", rev],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.strip()
+    name = f"granpipe_ab_{sha}"
+    root = Path(tempfile.gettempdir()) / "granpipe_ab"
+    pkg = root / name
+    if not pkg.exists():
+        tmp = root / f".{name}.tmp"
+        tmp.mkdir(parents=True, exist_ok=True)
+        archive = subprocess.run(
+            ["git", "-C", str(REPO), "archive", sha, "src/granpipe"],
+            check=True,
+            capture_output=True,
+        ).stdout
+        subprocess.run(["tar", "-x", "-C", str(tmp)], input=archive, check=True)
+        for path in (tmp / "src" / "granpipe").rglob("*.py"):
+            text = path.read_text()
+            text = re.sub(r"\bgranpipe\.", f"{name}.", text)
+            text = re.sub(r"\bfrom granpipe import\b", f"from {name} import", text)
+            path.write_text(text)
+        (tmp / "src" / "granpipe").rename(pkg)
+    sys.path.insert(0, str(root))
+    return name
+
+
+def systems(pkg: str, which, rounds: int) -> dict:
+    """``{system: (run one chunk, particle-steps per chunk)}`` built with package ``pkg``."""
+    E = importlib.import_module(f"{pkg}.engine")
+    drum_law = E.DrumLaw(k_n=565.97, gamma_n=8.7308, gamma_t=6.8927, mu=0.44)
+    box_law = E.BoxLaw(kappa_n=1e6, kappa_t=1e4, gamma_n=100.0, gamma_t=100.0, mu=0.6)
+    dt_box = box_law.contact_time(0.5) / 50
+    period = int(round(2 * math.pi / dt_box))
+    out = {}
+
+    def aligned(state):
+        state._s = _aligned(state._s)
+        return state
+
+    if {"df", "dt"} & set(which):
+        d = np.load(bench.CACHE / "granpipe_bench_drum_pile.npz")
+        diam = np.where(np.arange(736) % 2 == 0, 1.0, 1.1667)
+        radii = np.r_[diam / 2, np.full(150, 1.3846 / 2)]
+        masses = np.r_[diam**2, np.ones(150)]
+        is_wall = np.arange(886) >= 736
+        walls = E.WallDisks(omega=bench.OMEGA_DRUM)
+        sim = E.Simulation(drum_law, dt=bench.DT_DRUM, wall_disks=walls)
+        for key in ("df", "dt"):
+            if key not in which:
+                continue
+            st = aligned(
+                sim.new_state(d["pos"], radii, masses, velocities=d["vel"], is_wall=is_wall)
+            )
+            kw = {}
+            if key == "dt":
+                sim.random_tangent(st, np.random.default_rng(1))
+                kw = {"stride": 35, "tangent": True}
+            sim.run(st, 35, **kw)
+            out[key] = (lambda s=sim, x=st, k=kw: s.run(x, 350, **k), 350 * 736)
+    if "bc" in which:
+        c = np.load(bench.CACHE / "granpipe_bench_box_crystal_v2.npz")
+        n = len(c["pos"])
+        flat = E.FlatWalls(x_left=0.0, x_right=bench.LX, bottom=True, z0=0.0)
+        sim = E.Simulation(box_law, dt=dt_box, flat_walls=flat)
+        st = sim.new_state(
+            c["pos"], np.full(n, 0.5), np.ones(n), velocities=c["vel"], spins=c["spin"]
+        )
+        st = aligned(st)
+        sim.run(st, 10)
+        out["bc"] = (lambda s=sim, x=st: s.run(x, 500), 500 * n)
+    if "bd" in which:
+        c = np.load(bench.CACHE / f"granpipe_bench_box_driven_v2_{period}.npz")
+        n = len(c["pos"])
+        flat = E.FlatWalls(
+            x_left=0.0,
+            x_right=bench.LX,
+            bottom=True,
+            z0=0.0,
+            amplitude=2.0,
+            omega=1.0,
+            phase=-math.pi / 2,
+        )
+        sim = E.Simulation(box_law, dt=dt_box, flat_walls=flat)
+        st = sim.new_state(
+            c["pos"],
+            np.full(n, 0.5),
+            np.ones(n),
+            velocities=c["vel"],
+            spins=c["spin"],
+            time=float(c["t"]),
+        )
+        st = aligned(st)
+        sim.run(st, 10)
+        chunk = period // rounds
+        out["bd"] = (lambda s=sim, x=st, k=chunk: s.run(x, k), chunk * n)
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("rev", help="git revision to compare the working tree against")
+    ap.add_argument("--systems", default=",".join(SYSTEMS))
+    ap.add_argument("--rounds", type=int, default=24)
+    args = ap.parse_args(argv)
+    which = args.systems.split(",")
+    if bad := set(which) - set(SYSTEMS):
+        ap.error(f"unknown systems {sorted(bad)}; choose from {','.join(SYSTEMS)}")
+    numba.set_num_threads(1)
+    # the settled states of benchmarks/engine.py (built and cached there if missing)
+    bench.drum_system()
+    bench.box_driven()
+    old = systems(export(args.rev), which, args.rounds)
+    new = systems("granpipe", which, args.rounds)
+    ratios = {}
+    for key in which:
+        times = {"old": [], "new": []}
+        for r in range(args.rounds):
+            for label in ("old", "new") if r % 2 == 0 else ("new", "old"):
+                run, work = (old if label == "old" else new)[key]
+                t = time.thread_time()
+                run()
+                times[label].append((time.thread_time() - t) / work * 1e9)
+        a, b = np.array(times["old"]), np.array(times["new"])
+        ratios[key] = round(float(np.median(b / a)), 3)
+        print(
+            f"{key}: {args.rev} fastest {a.min():6.2f} median {np.median(a):6.2f} | working tree "
+            f"fastest {b.min():6.2f} median {np.median(b):6.2f} ns/particle-step | "
+            f"new/old {ratios[key]:.3f}",
+            flush=True,
+        )
+    print(json.dumps(ratios))
+
+
+if __name__ == "__main__":
+    main()
