@@ -29,6 +29,7 @@ docs/engine_performance.md records the figures and what bounds them.
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import math
 import os
@@ -45,33 +46,44 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import numba
 import numpy as np
 
-from granpipe.engine import BoxLaw, DrumLaw, FlatWalls, Simulation, WallDisks
-from granpipe.engine.geometry import hexagonal_rows, random_disks_in_circle, ring_of_disks
+from granpipe.engine import BoxLaw, DrumLaw
 
-DRUM_LAW = DrumLaw(k_n=565.97, gamma_n=8.7308, gamma_t=6.8927, mu=0.44)
+DRUM_PARAMS = {"k_n": 565.97, "gamma_n": 8.7308, "gamma_t": 6.8927, "mu": 0.44}
+DRUM_LAW = DrumLaw(**DRUM_PARAMS)
 DT_DRUM = 1.14368e-3
 OMEGA_DRUM = -2.4417e-4
-BOX_LAW = BoxLaw(kappa_n=1e6, kappa_t=1e4, gamma_n=100.0, gamma_t=100.0, mu=0.6)
+BOX_PARAMS = {"kappa_n": 1e6, "kappa_t": 1e4, "gamma_n": 100.0, "gamma_t": 100.0, "mu": 0.6}
+BOX_LAW = BoxLaw(**BOX_PARAMS)
 DT_BOX = BOX_LAW.contact_time(0.5) / 50
 LX = 20.0
 N_BOX = 1200
 CACHE = Path(tempfile.gettempdir())
 
 
-def drum_system(skin=None):
-    ring, radius = ring_of_disks(150, 1.3846)
+def _api(pkg):
+    """The engine and geometry modules of package ``pkg``: ``granpipe``, or an older
+    revision's renamed copy (``benchmarks/engine_ab.py``) built from the same states."""
+    return importlib.import_module(f"{pkg}.engine"), importlib.import_module(
+        f"{pkg}.engine.geometry"
+    )
+
+
+def drum_system(skin=None, pkg="granpipe"):
+    E, G = _api(pkg)
+    ring, radius = G.ring_of_disks(150, 1.3846)
     diam = np.where(np.arange(736) % 2 == 0, 1.0, 1.1667)
     radii = np.r_[diam / 2, np.full(150, 1.3846 / 2)]
     masses = np.r_[diam**2, np.ones(150)]
     is_wall = np.arange(886) >= 736
-    sim = Simulation(DRUM_LAW, dt=DT_DRUM, wall_disks=WallDisks(omega=0.0), skin=skin)
+    law = E.DrumLaw(**DRUM_PARAMS)
+    sim = E.Simulation(law, dt=DT_DRUM, wall_disks=E.WallDisks(omega=0.0), skin=skin)
     path = CACHE / "granpipe_bench_drum_pile.npz"
     if path.exists():
         saved = np.load(path)
         pos, vel = saved["pos"], saved["vel"]
     else:
         rng = np.random.default_rng(2016)
-        inner = random_disks_in_circle(rng, diam / 2, radius - 1.3846 / 2, y_max=0.0)
+        inner = G.random_disks_in_circle(rng, diam / 2, radius - 1.3846 / 2, y_max=0.0)
         state = sim.new_state(np.vstack([inner, ring]), radii, masses, is_wall=is_wall)
         t = time.perf_counter()
         for _ in range(60):
@@ -84,15 +96,16 @@ def drum_system(skin=None):
         )
         pos, vel = state.positions.copy(), state.velocities.copy()
         np.savez(path, pos=pos, vel=vel)
-    sim = sim.replace(wall_disks=WallDisks(omega=OMEGA_DRUM))
+    sim = sim.replace(wall_disks=E.WallDisks(omega=OMEGA_DRUM))
     state = sim.new_state(pos, radii, masses, velocities=vel, is_wall=is_wall)
     return sim, state
 
 
-def box_crystal(skin=None):
-    pos = hexagonal_rows(N_BOX, 1.0, LX, bottom=0.0)
-    flat = FlatWalls(x_left=0.0, x_right=LX, bottom=True, z0=0.0)
-    sim = Simulation(BOX_LAW, dt=DT_BOX, flat_walls=flat, skin=skin)
+def box_crystal(skin=None, pkg="granpipe"):
+    E, G = _api(pkg)
+    pos = G.hexagonal_rows(N_BOX, 1.0, LX, bottom=0.0)
+    flat = E.FlatWalls(x_left=0.0, x_right=LX, bottom=True, z0=0.0)
+    sim = E.Simulation(E.BoxLaw(**BOX_PARAMS), dt=DT_BOX, flat_walls=flat, skin=skin)
     path = CACHE / "granpipe_bench_box_crystal_v2.npz"
     n = len(pos)
     if path.exists():
@@ -116,9 +129,10 @@ def box_crystal(skin=None):
     return sim, state
 
 
-def box_driven(skin=None, quick=False):
-    sim0, crystal = box_crystal(skin)
-    flat = FlatWalls(
+def box_driven(skin=None, quick=False, pkg="granpipe"):
+    E, _ = _api(pkg)
+    sim0, crystal = box_crystal(skin, pkg)
+    flat = E.FlatWalls(
         x_left=0.0, x_right=LX, bottom=True, z0=0.0, amplitude=2.0, omega=1.0, phase=-math.pi / 2
     )
     sim = sim0.replace(flat_walls=flat)

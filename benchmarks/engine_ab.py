@@ -23,9 +23,7 @@ clean tree): the ratios then show the harness's own bias.
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
-import math
 import os
 import re
 import subprocess
@@ -79,32 +77,18 @@ def export(rev: str) -> str:
 
 
 def systems(pkg: str, which, rounds: int) -> dict:
-    """``{system: (run one chunk, particle-steps per chunk)}`` built with package ``pkg``."""
-    E = importlib.import_module(f"{pkg}.engine")
-    drum_law = E.DrumLaw(k_n=565.97, gamma_n=8.7308, gamma_t=6.8927, mu=0.44)
-    box_law = E.BoxLaw(kappa_n=1e6, kappa_t=1e4, gamma_n=100.0, gamma_t=100.0, mu=0.6)
-    dt_box = box_law.contact_time(0.5) / 50
-    period = int(round(2 * math.pi / dt_box))
+    """``{system: (run one chunk, particle-steps per chunk)}`` built with package ``pkg``
+    from the settled states of ``benchmarks/engine.py``, on 64-byte cache lines."""
     out = {}
 
     def aligned(state):
         state._s = _aligned(state._s)
         return state
 
-    if {"df", "dt"} & set(which):
-        d = np.load(bench.CACHE / "granpipe_bench_drum_pile.npz")
-        diam = np.where(np.arange(736) % 2 == 0, 1.0, 1.1667)
-        radii = np.r_[diam / 2, np.full(150, 1.3846 / 2)]
-        masses = np.r_[diam**2, np.ones(150)]
-        is_wall = np.arange(886) >= 736
-        walls = E.WallDisks(omega=bench.OMEGA_DRUM)
-        sim = E.Simulation(drum_law, dt=bench.DT_DRUM, wall_disks=walls)
-        for key in ("df", "dt"):
-            if key not in which:
-                continue
-            st = aligned(
-                sim.new_state(d["pos"], radii, masses, velocities=d["vel"], is_wall=is_wall)
-            )
+    for key in ("df", "dt"):
+        if key in which:
+            sim, st = bench.drum_system(pkg=pkg)
+            st = aligned(st)
             kw = {}
             if key == "dt":
                 sim.random_tangent(st, np.random.default_rng(1))
@@ -112,41 +96,16 @@ def systems(pkg: str, which, rounds: int) -> dict:
             sim.run(st, 35, **kw)
             out[key] = (lambda s=sim, x=st, k=kw: s.run(x, 350, **k), 350 * 736)
     if "bc" in which:
-        c = np.load(bench.CACHE / "granpipe_bench_box_crystal_v2.npz")
-        n = len(c["pos"])
-        flat = E.FlatWalls(x_left=0.0, x_right=bench.LX, bottom=True, z0=0.0)
-        sim = E.Simulation(box_law, dt=dt_box, flat_walls=flat)
-        st = sim.new_state(
-            c["pos"], np.full(n, 0.5), np.ones(n), velocities=c["vel"], spins=c["spin"]
-        )
+        sim, st = bench.box_crystal(pkg=pkg)
         st = aligned(st)
         sim.run(st, 10)
-        out["bc"] = (lambda s=sim, x=st: s.run(x, 500), 500 * n)
+        out["bc"] = (lambda s=sim, x=st: s.run(x, 500), 500 * st.n)
     if "bd" in which:
-        c = np.load(bench.CACHE / f"granpipe_bench_box_driven_v2_{period}.npz")
-        n = len(c["pos"])
-        flat = E.FlatWalls(
-            x_left=0.0,
-            x_right=bench.LX,
-            bottom=True,
-            z0=0.0,
-            amplitude=2.0,
-            omega=1.0,
-            phase=-math.pi / 2,
-        )
-        sim = E.Simulation(box_law, dt=dt_box, flat_walls=flat)
-        st = sim.new_state(
-            c["pos"],
-            np.full(n, 0.5),
-            np.ones(n),
-            velocities=c["vel"],
-            spins=c["spin"],
-            time=float(c["t"]),
-        )
+        sim, st, period = bench.box_driven(pkg=pkg)
         st = aligned(st)
         sim.run(st, 10)
         chunk = period // rounds
-        out["bd"] = (lambda s=sim, x=st, k=chunk: s.run(x, k), chunk * n)
+        out["bd"] = (lambda s=sim, x=st, k=chunk: s.run(x, k), chunk * st.n)
     return out
 
 
