@@ -35,14 +35,14 @@ vectorises: the law leaves are written with selects only), scatter the forces â€
 because LLVM does not emit hardware gathers here and a fused loop is latency bound.
 The scatter is one flat pass too: short per-disk inner loops mispredict their exits
 (that cost more than the arithmetic), and the owner's sums stay in registers until its
-row ends. The per-disk passes work on flat ``2N`` arrays and
-reduce flags by integer counts so that they vectorise; bad states are located only
-after a flag is raised. The second half kick of a step is done in the pass of the next
-step's first kick (same force, same operations). Flat-wall contacts are looked for only
-among the disks of a near-wall list (:func:`_near_walls`). The compacted pair pass of
-dilute states skips groups of four pairs that are all apart after one four-lane test.
-With the tangent vector the drum uses instead one fused pass in two vectorised halves,
-four pairs at a time (:func:`_drum_pair_pass`, :mod:`granpipe.engine.simd`; same bits).
+row ends. The per-disk passes work on flat ``2N`` arrays and reduce flags by integer
+counts so that they vectorise; bad states are located only after a flag is raised. The
+second half kick of a step is done in the pass of the next step's first kick (same
+force, same operations). Flat-wall contacts are looked for only among the disks of a
+near-wall list (:func:`_near_walls`). The compacted pair pass of dilute states skips
+groups of four pairs that are all apart after one four-lane test. With the tangent
+vector the drum uses instead one fused pass in two vectorised halves, four pairs at a
+time (:func:`_drum_pair_pass`, :mod:`granpipe.engine.simd`; same bits).
 """
 
 from __future__ import annotations
@@ -798,8 +798,7 @@ def _drum_pair_pass(vec, pair_ij, pair_c, buf, touch, law, npairs, tangent):
 
     Two vectorised halves, four pairs at a time (:mod:`granpipe.engine.simd`): the
     geometry (relative positions and velocities, ``r``, normal; bound by the square root
-    and division),
-    then the law and the scatter. Same arithmetic and summation order as the separate
+    and division), then the law and the scatter. Same arithmetic and summation order as the separate
     gather, law and scatter passes (:func:`_gather`, :func:`_drum_pairs`,
     :func:`_scatter`), so the same bits.
     """
