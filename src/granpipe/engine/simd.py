@@ -44,7 +44,7 @@ def _f64_vectors(*arrays):
 
 def _vec_at(builder, data, idx, lanes):
     """Pointer to ``lanes`` consecutive doubles of ``data`` from element ``idx``."""
-    vt = ir.VectorType(ir.DoubleType(), lanes)
+    vt = ir.VectorType(_F64, lanes)
     return builder.bitcast(builder.gep(data, [idx]), vt.as_pointer())
 
 

@@ -77,7 +77,8 @@ class Ensemble:
                 parts = [s._s[key] for s in states]
                 width = max(p.shape[-1] for p in parts)
                 parts = [_pad(p, width) for p in parts]
-                storage[key] = np.ascontiguousarray(np.concatenate(parts, axis=0))
+                shape = (sum(p.shape[0] for p in parts),) + parts[0].shape[1:]
+                storage[key] = np.concatenate(parts, axis=0, out=_aligned_empty(shape, val.dtype))
             else:
                 storage[key] = val
         return Ensemble(_aligned(storage))
@@ -103,9 +104,7 @@ class Ensemble:
     def copy(self):
         """Deep copy (independent arrays)."""
         return type(self)(
-            _aligned(
-                {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self._s.items()}
-            )
+            {k: (_aligned_copy(v) if isinstance(v, np.ndarray) else v) for k, v in self._s.items()}
         )
 
     def to_arrays(self) -> dict:
@@ -146,7 +145,7 @@ class Ensemble:
             elif key == "centre":
                 storage[key] = tuple(float(c) for c in a)
             else:
-                storage[key] = np.ascontiguousarray(a).copy()
+                storage[key] = _aligned_copy(a)
         if fmt == 3:
             # format 3 kept four rows of per-disk records (scratch) after the eleven
             storage["vec"] = np.ascontiguousarray(storage["vec"][:, : K.NV])
@@ -343,11 +342,18 @@ _PAIR_KEYS = ("pair_ij", "pair_c", "pair_xi", "old_j", "old_xi", "buf", "touch")
 _ALIGN = 64
 
 
+def _aligned_empty(shape, dtype):
+    """An uninitialised C-contiguous array whose data start on a 64-byte cache line."""
+    dtype = np.dtype(dtype)
+    nbytes = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+    raw = np.empty(nbytes + _ALIGN, dtype=np.uint8)
+    start = -raw.ctypes.data % _ALIGN
+    return raw[start : start + nbytes].view(dtype).reshape(shape)
+
+
 def _aligned_copy(a):
     """A C-contiguous copy of ``a`` whose data start on a 64-byte cache line."""
-    raw = np.empty(a.nbytes + _ALIGN, dtype=np.uint8)
-    start = -raw.ctypes.data % _ALIGN
-    out = raw[start : start + a.nbytes].view(a.dtype).reshape(a.shape)
+    out = _aligned_empty(a.shape, a.dtype)
     out[...] = a
     return out
 
@@ -637,9 +643,10 @@ class Simulation:
             if cap > s["pair_xi"].shape[1]:
                 for key in _PAIR_KEYS:
                     old = s[key]
-                    grown = np.zeros(old.shape[:-1] + (cap,), dtype=old.dtype)
+                    grown = _aligned_empty(old.shape[:-1] + (cap,), old.dtype)
+                    grown[...] = 0
                     grown[..., : old.shape[-1]] = old
-                    s[key] = _aligned_copy(grown)
+                    s[key] = grown
             s["skin"] = skin
             s["counters"][:, K.FORCE_REBUILD] = 1
         return skin
