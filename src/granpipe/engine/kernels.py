@@ -38,11 +38,14 @@ The scatter is one flat pass too: short per-disk inner loops mispredict their ex
 row ends. The per-disk passes work on flat ``2N`` arrays and reduce flags by integer
 counts so that they vectorise; bad states are located only after a flag is raised. The
 second half kick of a step is done in the pass of the next step's first kick (same
-force, same operations). Flat-wall contacts are looked for only among the disks of a
-near-wall list (:func:`_near_walls`). The compacted pair pass of dilute states skips
-groups of four pairs that are all apart after one four-lane test. With the tangent
-vector the drum uses instead one fused pass in two vectorised halves, four pairs at a
-time (:func:`_drum_pair_pass`, :mod:`granpipe.engine.simd`; same bits).
+force, same operations), with the sum behind ``V`` and the displacement test in the same
+pass (:func:`granpipe.engine.simd.kick8`); the tangent vector's kicks and the norms
+behind lambda likewise share one pass (:func:`_tangent_pass`). Flat-wall contacts are
+looked for only among the disks of a near-wall list (:func:`_near_walls`). The
+compacted pair pass of dilute states skips groups of four pairs that are all apart
+after one four-lane test. With the tangent vector the drum uses instead one fused pass
+in two vectorised halves, four pairs at a time (:func:`_drum_pair_pass`,
+:mod:`granpipe.engine.simd`; same bits).
 """
 
 from __future__ import annotations
@@ -64,9 +67,15 @@ from granpipe.engine.simd import (
     gather4_spins,
     gather4_spins_tail,
     gather4_tail,
+    kick8,
+    kick8_first,
+    kick8_v2,
     pair_front4,
     pair_front4_tail,
     speed2_lanes,
+    tangent8,
+    tangent8_first,
+    tangent8_last,
     touch_bits4,
 )
 from granpipe.engine.walls import bottom_height, bottom_velocity, wall_omega
@@ -263,7 +272,7 @@ def _set_gravity(vec, sca, gx, gy):
 
 
 @njit
-def _kick_drift(vec, sca, dt, thr, spin_on, tangent, finish, want_v2):
+def _kick_drift(vec, sca, dt, thr, spin_on, finish, want_v2):
     """First half kick and drift (walls too: zero inverse mass, positions reset after).
 
     With ``finish``, the second half kick of the previous step is done in the same pass
@@ -271,36 +280,55 @@ def _kick_drift(vec, sca, dt, thr, spin_on, tangent, finish, want_v2):
     operations of :func:`_final_kick` followed by the first kick), so that the per-disk
     rows are read once per step. Returns ``(moved, v2, bad)``: ``moved`` if some disk is
     now farther than ``thr`` (= skin/2) from where it was at the last list build; for the
-    finished step, ``v2`` (sum of ``|v|²`` over mobile disks if ``want_v2``, else 0) and
-    ``bad`` (a non-finite or huge half-step velocity or spin).
+    finished step, ``v2`` (sum of ``|v|²`` over mobile disks if ``want_v2``, else 0: the
+    sum of :func:`_v2`) and ``bad`` (a non-finite or huge half-step velocity or spin).
+
+    Kicks, drift, ``v2`` and the displacement test are one vectorised pass over groups of
+    four disks (:func:`granpipe.engine.simd.kick8`; the remaining disks below, the same
+    operations); the tangent vector has its own pass (:func:`_tangent_pass`).
     """
     p = _flat(vec[POS])
     v = _flat(vec[VEL])
     f = _flat(vec[FRC])
     im = _flat(vec[IM2])
+    mob = _flat(vec[MOB2])
     b = _flat(vec[POS_BUILD])
     h = 0.5 * dt
     thr2 = thr * thr
-    v2 = _v2(vec, h) if finish and want_v2 else 0.0
-    bad = 0
-    if finish:
-        for k in range(p.shape[0]):
-            a = h * (f[k] * im[k])
-            w = (v[k] + a) + a
-            v[k] = w
-            p[k] = p[k] + dt * w
-            bad += 0 if abs(w) < _BIG else 1
+    n2 = p.shape[0]
+    m8 = n2 - n2 % 8
+    m4 = n2 - n2 % 4
+    if not finish:
+        s0, s1, s2, s3, bad, moved = kick8_first(p, v, f, im, mob, b, h, dt, thr2, m8)
+    elif want_v2:
+        s0, s1, s2, s3, bad, moved = kick8_v2(p, v, f, im, mob, b, h, dt, thr2, m8)
     else:
-        for k in range(p.shape[0]):
-            w = v[k] + h * (f[k] * im[k])
-            v[k] = w
-            p[k] = p[k] + dt * w
-    # flat arrays and an integer count (not a boolean or): the loop vectorises
-    moved = 0
-    for i in range(p.shape[0] // 2):
+        s0, s1, s2, s3, bad, moved = kick8(p, v, f, im, mob, b, h, dt, thr2, m8)
+    for k in range(m8, n2):
+        a = h * (f[k] * im[k])
+        u = v[k] + a
+        if finish and want_v2:
+            # the lanes of speed2_lanes up to m4, the rest into the first (as in _v2)
+            c = u * u * mob[k]
+            lane = k % 4 if k < m4 else 0
+            if lane == 0:
+                s0 += c
+            elif lane == 1:
+                s1 += c
+            elif lane == 2:
+                s2 += c
+            else:
+                s3 += c
+        w = u + a if finish else u
+        v[k] = w
+        p[k] = p[k] + dt * w
+        if finish:
+            bad += 0 if abs(w) < _BIG else 1
+    for i in range(m8 // 2, n2 // 2):
         dx = p[2 * i] - b[2 * i]
         dy = p[2 * i + 1] - b[2 * i + 1]
         moved += 1 if dx * dx + dy * dy > thr2 else 0
+    v2 = (s0 + s1) + (s2 + s3)
     if spin_on:
         spin = sca[SPIN]
         trq = sca[TORQUE]
@@ -314,14 +342,6 @@ def _kick_drift(vec, sca, dt, thr, spin_on, tangent, finish, want_v2):
         else:
             for i in range(spin.shape[0]):
                 spin[i] = spin[i] + h * (trq[i] * inv_i[i])
-    if tangent:
-        tr = _flat(vec[T_POS])
-        tv = _flat(vec[T_VEL])
-        tf = _flat(vec[T_FRC])
-        for k in range(tr.shape[0]):
-            w = tv[k] + h * (tf[k] * im[k])
-            tv[k] = w
-            tr[k] = tr[k] + dt * w
     return moved > 0, v2, bad > 0
 
 
@@ -382,42 +402,79 @@ def _first_nonfinite(vec, sca):
 
 
 @njit
-def _tangent_kick(vec, sca, ivec, dt, info, step, counters):
-    """Second half kick of the tangent vector, its growth over S, and renormalisation.
+def _tangent_pass(vec, sca, ivec, dt, mode):
+    """The tangent vector's per-disk pass; returns ``(num, den, total)``.
 
-    Returns ``(num, den)``: ``|du(t)|²_S`` and ``|du(t - dt)|²_S`` with S the disks with
-    at least two contacts at this step (walls count); ``num = -1`` on a non-finite vector.
+    ``mode`` 0: first half kick and drift of the step, ``dw = dv + (dt/2) dF/m``,
+    ``dr += dt dw``. ``mode`` 1: first the previous step's second half kick (same
+    ``dF``) and its norms, then the kick and drift of mode 0; ``mode`` 2 (end of a
+    run): the second half kick and norms only. The norms are of the finished step:
+    ``num = |du(t)|²_S`` and ``den = |du(t - dt)|²_S`` with S the disks with at least
+    two contacts at that step (walls count), ``total = |du(t)|²`` over mobile disks
+    (zero in mode 0). Four disks a group (:func:`granpipe.engine.simd.tangent8`:
+    each sum in four lanes over disks ``i = c mod 4``, added in a fixed order, so the
+    result does not depend on anything but the state); the remaining disks below.
     """
-    tr = vec[T_POS]
-    tv = vec[T_VEL]
-    tf = vec[T_FRC]
-    im = vec[IM2]
-    mob = vec[MOB2]
+    tr = _flat(vec[T_POS])
+    tv = _flat(vec[T_VEL])
+    tf = _flat(vec[T_FRC])
+    im = _flat(vec[IM2])
+    mob = _flat(vec[MOB2])
     prev = sca[T_PREV]
     contacts = ivec[CONTACTS]
-    n = tr.shape[0]
+    n = prev.shape[0]
+    n4 = n - n % 4
     h = 0.5 * dt
-    num = 0.0
-    den = 0.0
-    total = 0.0
-    a = _flat(tr)
-    b = _flat(tv)
-    d = _flat(tf)
-    m = _flat(im)
-    for k in range(b.shape[0]):
-        b[k] = b[k] + h * (d[k] * m[k])
-    for i in range(n):
+    if mode == 0:
+        q = tangent8_first(tr, tv, tf, im, mob, prev, contacts, h, dt, n4)
+    elif mode == 1:
+        q = tangent8(tr, tv, tf, im, mob, prev, contacts, h, dt, n4)
+    else:
+        q = tangent8_last(tr, tv, tf, im, mob, prev, contacts, h, dt, n4)
+    num = q[0]
+    den = q[4]
+    total = q[8]
+    for i in range(n4, n):
         x = 2 * i
         y = x + 1
-        q = (a[x] * a[x] + a[y] * a[y] + b[x] * b[x] + b[y] * b[y]) * mob[i, 0]
-        s = contacts[i] >= 2
-        num += q if s else 0.0
-        den += prev[i] if s else 0.0
-        prev[i] = q
-        total += q
+        ax = h * (tf[x] * im[x])
+        ay = h * (tf[y] * im[y])
+        ux = tv[x] + ax
+        uy = tv[y] + ay
+        if mode != 0:
+            qi = (tr[x] * tr[x] + tr[y] * tr[y] + ux * ux + uy * uy) * mob[x]
+            s = contacts[i] >= 2
+            num += qi if s else 0.0
+            den += prev[i] if s else 0.0
+            prev[i] = qi
+            total += qi
+        if mode == 2:
+            tv[x] = ux
+            tv[y] = uy
+        else:
+            wx = ux if mode == 0 else ux + ax
+            wy = uy if mode == 0 else uy + ay
+            tv[x] = wx
+            tv[y] = wy
+            tr[x] = tr[x] + dt * wx
+            tr[y] = tr[y] + dt * wy
+    num = (num + q[1]) + (q[2] + q[3])
+    den = (den + q[5]) + (q[6] + q[7])
+    total = (total + q[9]) + (q[10] + q[11])
+    return num, den, total
+
+
+@njit
+def _tangent_done(vec, sca, num, total, info, step, counters):
+    """Check a finished step's tangent norms (:func:`_tangent_pass`) and renormalise.
+
+    Returns False (and records the failure at ``step``) on a non-finite vector. The
+    renormalisation multiplies ``(dr, dv, dF)`` and the stored norms by a power of two:
+    exact, so it commutes with the kick and drift already applied in the same pass.
+    """
     if not (total < math.inf):
         _fail(info, TANGENT_NONFINITE, -1, -1, step)
-        return -1.0, 0.0
+        return False
     # scale by the part that enters lambda (rattlers' components may be far larger or
     # smaller), but never let the whole vector come near overflow
     ref = num if num > 0.0 else total
@@ -426,14 +483,18 @@ def _tangent_kick(vec, sca, ivec, dt, info, step, counters):
         e = max(e, int(math.ceil(0.5 * math.log2(total))) - 450)
         c = math.ldexp(1.0, -e)
         c2 = c * c
+        a = _flat(vec[T_POS])
+        b = _flat(vec[T_VEL])
+        d = _flat(vec[T_FRC])
+        prev = sca[T_PREV]
         for k in range(a.shape[0]):
             a[k] *= c
             b[k] *= c
             d[k] *= c
-        for i in range(n):
+        for i in range(prev.shape[0]):
             prev[i] *= c2
         counters[LOG2_SCALE] += e
-    return num, den
+    return True
 
 
 # --------------------------------------------------------------------------- pair passes
@@ -1481,6 +1542,18 @@ def _end_run(vec, sca, dt, spin_on, stride, blk, out_speed, out_nlam, out_lam, i
 
 
 @njit
+def _lambda_step(vec, sca, num, den, total, dt, blk, info, step, counters):
+    """A finished step's ``lambda = (1/2dt) ln(num/den)`` into the block (where defined);
+    False on a non-finite tangent vector (:func:`_tangent_done`)."""
+    if not _tangent_done(vec, sca, num, total, info, step, counters):
+        return False
+    if num > 0.0 and den > 0.0:
+        blk[_LAM_SUM] += 0.5 * math.log(num / den) / dt
+        blk[_LAM_N] += 1.0
+    return True
+
+
+@njit
 def _drum_replica(
     n_steps, stride, tangent, dt, g, law, wd, fw, skin, st, out_lam, out_nlam, out_speed, info
 ):
@@ -1501,9 +1574,16 @@ def _drum_replica(
     for s in range(n_steps):
         step = counters[STEP] + 1
         # the last step's second half kick is done with this step's first (same force)
-        moved, v2, bad = _kick_drift(vec, sca, dt, half_skin, False, tangent, s > 0, stride > 0)
+        moved, v2, bad = _kick_drift(vec, sca, dt, half_skin, False, s > 0, stride > 0)
         if bad:
             return _fail(info, NONFINITE, _first_nonfinite(vec, sca), -1, step - 1)
+        if tangent:
+            # the tangent vector's kicks and the last step's norms, in one pass
+            num, den, total = _tangent_pass(vec, sca, ivec, dt, 1 if s > 0 else 0)
+            if s > 0 and not _lambda_step(
+                vec, sca, num, den, total, dt, blk, info, step - 1, counters
+            ):
+                return info[0]
         if s > 0 and stride > 0:
             _block_means(v2, stride, blk, out_speed, out_nlam, out_lam)
         wmoved, zb, vb = _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin)
@@ -1548,13 +1628,10 @@ def _drum_replica(
             return info[0]
         counters[CONTACT_SUM] += ncon
         counters[STEPS_RUN] += 1
-        if tangent:
-            num, den = _tangent_kick(vec, sca, ivec, dt, info, step, counters)
-            if num < 0.0:
-                return info[0]
-            if num > 0.0 and den > 0.0:
-                blk[_LAM_SUM] += 0.5 * math.log(num / den) / dt
-                blk[_LAM_N] += 1.0
+    if n_steps > 0 and tangent:
+        num, den, total = _tangent_pass(vec, sca, ivec, dt, 2)
+        if not _lambda_step(vec, sca, num, den, total, dt, blk, info, counters[STEP], counters):
+            return info[0]
     if n_steps > 0:
         code = _end_run(
             vec, sca, dt, False, stride, blk, out_speed, out_nlam, out_lam, info, counters
@@ -1581,7 +1658,7 @@ def _box_replica(n_steps, stride, dt, g, law, wd, fw, skin, st, out_speed, info)
     zb = 0.0
     for s in range(n_steps):
         step = counters[STEP] + 1
-        moved, v2, bad = _kick_drift(vec, sca, dt, half_skin, True, False, s > 0, stride > 0)
+        moved, v2, bad = _kick_drift(vec, sca, dt, half_skin, True, s > 0, stride > 0)
         if bad:
             return _fail(info, NONFINITE, _first_nonfinite(vec, sca), -1, step - 1)
         if s > 0 and stride > 0:

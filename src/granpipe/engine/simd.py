@@ -27,7 +27,19 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-__all__ = ["gather4", "gather4_spins", "gather4_spins_tail", "gather4_tail", "speed2_lanes"]
+__all__ = [
+    "gather4",
+    "gather4_spins",
+    "gather4_spins_tail",
+    "gather4_tail",
+    "kick8",
+    "kick8_first",
+    "kick8_v2",
+    "speed2_lanes",
+    "tangent8",
+    "tangent8_first",
+    "tangent8_last",
+]
 
 _F64 = ir.DoubleType()
 _V4 = ir.VectorType(_F64, 4)
@@ -88,6 +100,206 @@ def speed2_lanes(typingctx, v, f, im, mob, h, m):
         return context.make_tuple(builder, ret, lanes)
 
     return sig, codegen
+
+
+# ------------------------------------------------------------ per-disk passes (8 wide)
+
+_V8 = ir.VectorType(_F64, 8)
+_I64x4 = ir.VectorType(_I64, 4)
+_I64x8 = ir.VectorType(_I64, 8)
+# |w| < _BIG: kernels._BIG (a finite, not huge half-step velocity)
+_BIG = 1e300
+
+
+def _bcast(builder, x, lanes):
+    """The scalar ``x`` in every lane of a ``lanes``-wide vector."""
+    vt = ir.VectorType(x.type, lanes)
+    v = builder.insert_element(ir.Constant(vt, ir.Undefined), x, ir.Constant(_I32, 0))
+    return builder.shuffle_vector(v, v, ir.Constant(ir.VectorType(_I32, lanes), [0] * lanes))
+
+
+def _pick(builder, x, idx):
+    """Lanes ``idx`` of the vector ``x``."""
+    return builder.shuffle_vector(x, x, ir.Constant(ir.VectorType(_I32, len(idx)), idx))
+
+
+def _xy(builder, x8):
+    """Eight flat components ``[x0, y0, .., x3, y3]`` of four disks -> ``[x0..x3], [y0..y3]``."""
+    return _pick(builder, x8, [0, 2, 4, 6]), _pick(builder, x8, [1, 3, 5, 7])
+
+
+def _hsum(builder, v, lanes):
+    """Sum of the lanes of an integer vector (i64)."""
+    t = builder.extract_element(v, ir.Constant(_I32, 0))
+    for c in range(1, lanes):
+        t = builder.add(t, builder.extract_element(v, ir.Constant(_I32, c)))
+    return t
+
+
+def _accumulate(builder, cell, x):
+    builder.store(builder.add(builder.load(cell), x), cell)
+
+
+def _fadd_into(builder, cell, x):
+    builder.store(builder.fadd(builder.load(cell), x), cell)
+
+
+def _arrays(context, builder, sig, args, count):
+    return [
+        context.make_array(t)(context, builder, x)
+        for t, x in zip(sig.args[:count], args[:count], strict=True)
+    ]
+
+
+def _kick8(finish, want_v2):
+    """Intrinsic ``(p, v, f, im, mob, b, h, dt, thr2, m) -> (s0, s1, s2, s3, bad, moved)``:
+    the per-disk pass of a step (:func:`granpipe.engine.kernels._kick_drift`) over the
+    flat ``2N`` rows, components ``k < m`` (``m`` a multiple of 8), four disks (eight
+    components, one 8-wide vector) a group.
+
+    Per component ``a = h (f im)``; with ``finish`` the previous step's pending second
+    half kick ``u = v + a``, then the first half kick ``w = u + a`` (without, ``w = v +
+    a``), the drift ``p += dt w`` and ``v = w``. Returns the four running sums of ``(u u)
+    mob`` (lane ``c`` over ``k = c mod 4`` in increasing ``k``: the sums of
+    :func:`speed2_lanes`; zero unless ``want_v2``), the count of components with ``not |w|
+    < 1e300`` (with ``finish``), and of disks with ``|p - b|² > thr2``. The IEEE operations
+    of the scalar loops in their order, so the same bits, in one pass over the rows
+    instead of three (kick and drift, displacement test, ``v2``).
+    """
+
+    def typer(typingctx, p, v, f, im, mob, b, h, dt, thr2, m):
+        if not _f64_vectors(p, v, f, im, mob, b):
+            return None
+        ret = types.Tuple((types.float64,) * 4 + (types.int64, types.int64))
+        sig = ret(p, v, f, im, mob, b, h, dt, thr2, m)
+
+        def codegen(context, builder, signature, args):
+            pa, va, fa, ia, ma, ba = _arrays(context, builder, sig, args, 6)
+            h8, dt8 = (_bcast(builder, args[c], 8) for c in (6, 7))
+            thr = _bcast(builder, args[8], 4)
+            big = ir.Constant(_V8, [_BIG] * 8)
+            m = context.cast(builder, args[9], sig.args[9], types.intp)
+            acc = cgutils.alloca_once_value(builder, ir.Constant(_V4, [0.0] * 4))
+            bad = cgutils.alloca_once_value(builder, ir.Constant(_I64x8, [0] * 8))
+            moved = cgutils.alloca_once_value(builder, ir.Constant(_I64x4, [0] * 4))
+            with cgutils.for_range(builder, builder.udiv(m, ir.Constant(_I64, 8))) as loop:
+                k = builder.mul(loop.index, ir.Constant(_I64, 8))
+                pp, vp, fp, ip, mp, bp = (
+                    _vec_at(builder, x.data, k, 8) for x in (pa, va, fa, ia, ma, ba)
+                )
+                fim = builder.fmul(builder.load(fp, align=8), builder.load(ip, align=8))
+                a = builder.fmul(h8, fim)
+                u = builder.fadd(builder.load(vp, align=8), a)
+                if want_v2:
+                    c = builder.fmul(builder.fmul(u, u), builder.load(mp, align=8))
+                    for half in ([0, 1, 2, 3], [4, 5, 6, 7]):
+                        _fadd_into(builder, acc, _pick(builder, c, half))
+                w = builder.fadd(u, a) if finish else u
+                builder.store(w, vp, align=8)
+                pn = builder.fadd(builder.load(pp, align=8), builder.fmul(dt8, w))
+                builder.store(pn, pp, align=8)
+                if finish:
+                    aw = builder.call(_intrinsic_fn(builder, "llvm.fabs.v8f64", _V8), [w])
+                    # not |w| < 1e300, NaN included
+                    nb = builder.fcmp_unordered(">=", aw, big)
+                    _accumulate(builder, bad, builder.zext(nb, _I64x8))
+                dx, dy = _xy(builder, builder.fsub(pn, builder.load(bp, align=8)))
+                r2 = builder.fadd(builder.fmul(dx, dx), builder.fmul(dy, dy))
+                _accumulate(
+                    builder, moved, builder.zext(builder.fcmp_ordered(">", r2, thr), _I64x4)
+                )
+            total = builder.load(acc)
+            out = [builder.extract_element(total, ir.Constant(_I32, c)) for c in range(4)]
+            out += [_hsum(builder, builder.load(bad), 8), _hsum(builder, builder.load(moved), 4)]
+            return context.make_tuple(builder, ret, out)
+
+        return sig, codegen
+
+    return intrinsic(typer)
+
+
+def _intrinsic_fn(builder, name, vt):
+    fn = builder.module.globals.get(name)
+    return fn or ir.Function(builder.module, ir.FunctionType(vt, [vt]), name=name)
+
+
+kick8_first = _kick8(False, False)
+kick8 = _kick8(True, False)
+kick8_v2 = _kick8(True, True)
+
+
+def _tangent8(mode):
+    """Intrinsic ``(tr, tv, tf, im, mob, prev, contacts, h, dt, n) -> 12 sums``: the
+    tangent vector's per-disk pass (:func:`granpipe.engine.kernels._tangent_pass`) over
+    the disks ``i < n`` (``n`` a multiple of 4), four disks (one 8-wide vector of flat
+    components) a group.
+
+    Per component ``a = h (tf im)``. ``mode`` 0: the first half kick and drift, ``tv +=
+    a``, ``tr += dt tv``. Modes 1 and 2 first finish the previous step: its second half
+    kick ``u = tv + a`` and, per disk, its squared norm ``q_i = (((tr_x² + tr_y²) + u_x²) +
+    u_y²) mob_i`` (the order of the scalar code); with ``s_i = contacts_i >= 2`` they sum
+    ``q_i`` over S, the stored ``prev_i`` over S and ``q_i`` over all disks, and set
+    ``prev_i = q_i``. Mode 1 then kicks and drifts (``tv = u + a``, ``tr += dt tv``); mode
+    2 (the end of a run) leaves ``tv = u``. Each sum comes as four lanes (lane ``c`` over
+    the disks ``i = c mod 4``): ``(num0..3, den0..3, total0..3)``, zero in mode 0.
+    """
+
+    def typer(typingctx, tr, tv, tf, im, mob, prev, contacts, h, dt, n):
+        if not _f64_vectors(tr, tv, tf, im, mob, prev):
+            return None
+        ret = types.UniTuple(types.float64, 12)
+        sig = ret(tr, tv, tf, im, mob, prev, contacts, h, dt, n)
+
+        def codegen(context, builder, signature, args):
+            ra, va, fa, ia, ma, qa, ca = _arrays(context, builder, sig, args, 7)
+            h8, dt8 = (_bcast(builder, args[c], 8) for c in (7, 8))
+            n = context.cast(builder, args[9], sig.args[9], types.intp)
+            zero = ir.Constant(_V4, [0.0] * 4)
+            two = ir.Constant(_I64x4, [2] * 4)
+            accs = [cgutils.alloca_once_value(builder, zero) for _ in range(3)]
+            with cgutils.for_range(builder, builder.udiv(n, ir.Constant(_I64, 4))) as loop:
+                i = builder.mul(loop.index, ir.Constant(_I64, 4))
+                k = builder.mul(i, ir.Constant(_I64, 2))
+                rp, vp, fp, ip, mp = (_vec_at(builder, x.data, k, 8) for x in (ra, va, fa, ia, ma))
+                fim = builder.fmul(builder.load(fp, align=8), builder.load(ip, align=8))
+                a = builder.fmul(h8, fim)
+                u = builder.fadd(builder.load(vp, align=8), a)
+                r = builder.load(rp, align=8)
+                if mode != 0:
+                    rx, ry = _xy(builder, r)
+                    ux, uy = _xy(builder, u)
+                    mx, _ = _xy(builder, builder.load(mp, align=8))
+                    q = builder.fadd(builder.fmul(rx, rx), builder.fmul(ry, ry))
+                    q = builder.fadd(q, builder.fmul(ux, ux))
+                    q = builder.fmul(builder.fadd(q, builder.fmul(uy, uy)), mx)
+                    cp = builder.bitcast(builder.gep(ca.data, [i]), _I64x4.as_pointer())
+                    s = builder.icmp_signed(">=", builder.load(cp, align=8), two)
+                    pp = _vec_at(builder, qa.data, i, 4)
+                    old = builder.load(pp, align=8)
+                    builder.store(q, pp, align=8)
+                    terms = (builder.select(s, q, zero), builder.select(s, old, zero), q)
+                    for acc, x in zip(accs, terms, strict=True):
+                        _fadd_into(builder, acc, x)
+                if mode == 2:
+                    builder.store(u, vp, align=8)
+                else:
+                    w = u if mode == 0 else builder.fadd(u, a)
+                    builder.store(w, vp, align=8)
+                    builder.store(builder.fadd(r, builder.fmul(dt8, w)), rp, align=8)
+            out = []
+            for acc in accs:
+                tot = builder.load(acc)
+                out += [builder.extract_element(tot, ir.Constant(_I32, c)) for c in range(4)]
+            return context.make_tuple(builder, ret, out)
+
+        return sig, codegen
+
+    return intrinsic(typer)
+
+
+tangent8_first = _tangent8(0)
+tangent8 = _tangent8(1)
+tangent8_last = _tangent8(2)
 
 
 # --------------------------------------------------------------------------- lanes DSL
