@@ -729,8 +729,8 @@ def _pair_front4(full):
     (row length ``cap``) for :func:`_drum_back4`; with ``tp`` non-empty (the tangent
     vector's position and velocity parts ``tp, tv``) also the relative tangent vector.
     It stores the touch flags (``r² <= (a_i + a_j)²``) and returns ``touching + 8 deep +
-    64 changed``: counts of touching pairs, of pairs deeper than their bound ``slim`` and
-    of touch flags that changed.
+    64 changed``: the counts of touching pairs and of pairs deeper than their bound
+    ``slim``, and the lanes whose touch flag changed (bit ``c`` for pair ``k + c``).
     """
 
     def typer(typingctx, p, v, tp, tv, pi, pj, k, nvalid, ssum, slim, touch, rows, cap):
@@ -750,7 +750,11 @@ def _pair_front4(full):
             delta = r - s
             t64 = fr.mask_i64(r2 <= s * s)
             old = fr.lanes("touch", elem=_I64)
-            changed = fr.count(fr.mask_i64(_Mask(builder, builder.icmp_unsigned("!=", old, t64))))
+            ch = fr.mask_i64(_Mask(builder, builder.icmp_unsigned("!=", old, t64)))
+            changed = builder.extract_element(ch, ir.Constant(_I32, 0))
+            for lane in range(1, 4):
+                bit = builder.extract_element(ch, ir.Constant(_I32, lane))
+                changed = builder.or_(changed, builder.shl(bit, ir.Constant(_I64, lane)))
             fr.store_lanes("touch", t64)
             bad = fr.count(fr.mask_i64(-delta > lim))
             out = [(_B_NX, dx * inv_r), (_B_NY, dy * inv_r), (_B_DVX, dvx), (_B_DVY, dvy)]
