@@ -99,6 +99,20 @@ def test_non_finite_state_raises_with_particle_step_and_time():
     assert "non-finite" in str(err.value)
 
 
+@pytest.mark.parametrize("n_steps", [1, 10])
+def test_non_finite_tangent_vector_raises_at_its_step(n_steps):
+    """A NaN in the tangent vector is caught when the step that carried it ends: inside a
+    run (the norms of a step are taken in the next step's pass) and at a run's end."""
+    sim, state = drum_state(0)
+    sim.run(state, 10, tangent=True)
+    state.tangent_stored[1][7, 0] = np.nan
+    with pytest.raises(SimulationError) as err:
+        sim.run(state, n_steps, tangent=True)
+    assert err.value.step == 11
+    assert err.value.time == pytest.approx(11 * DT_DRUM)
+    assert "non-finite tangent vector" in str(err.value)
+
+
 def test_deep_overlap_raises_naming_both_disks():
     sim = Simulation(DRUM_LAW, dt=DT_DRUM, gravity=(0.0, 0.0))
     state = sim.new_state([[0, 0], [1.2, 0]], [0.5, 0.5], [1, 1], velocities=[[40, 0], [0, 0]])
