@@ -107,8 +107,8 @@ def speed2_lanes(typingctx, v, f, im, mob, h, m):
 _V8 = ir.VectorType(_F64, 8)
 _I64x4 = ir.VectorType(_I64, 4)
 _I64x8 = ir.VectorType(_I64, 8)
-# |w| < _BIG: kernels._BIG (a finite, not huge half-step velocity)
-_BIG = 1e300
+# a half-step velocity is bad unless |w| < BIG (kernels._BIG is this one)
+BIG = 1e300
 
 
 def _bcast(builder, x, lanes):
@@ -177,7 +177,7 @@ def _kick8(finish, want_v2):
             pa, va, fa, ia, ma, ba = _arrays(context, builder, sig, args, 6)
             h8, dt8 = (_bcast(builder, args[c], 8) for c in (6, 7))
             thr = _bcast(builder, args[8], 4)
-            big = ir.Constant(_V8, [_BIG] * 8)
+            big = ir.Constant(_V8, [BIG] * 8)
             m = context.cast(builder, args[9], sig.args[9], types.intp)
             acc = cgutils.alloca_once_value(builder, ir.Constant(_V4, [0.0] * 4))
             bad = cgutils.alloca_once_value(builder, ir.Constant(_I64x8, [0] * 8))
