@@ -81,8 +81,7 @@ def speed2_lanes(typingctx, v, f, im, mob, h, m):
             context.make_array(t)(context, builder, x)
             for t, x in zip(sig.args[:4], args[:4], strict=True)
         )
-        hv = builder.insert_element(ir.Constant(_V4, ir.Undefined), args[4], ir.Constant(_I32, 0))
-        hv = builder.shuffle_vector(hv, hv, ir.Constant(ir.VectorType(_I32, 4), [0] * 4))
+        hv = _bcast(builder, args[4], 4)
         m = context.cast(builder, args[5], sig.args[5], types.intp)
         groups = builder.udiv(m, ir.Constant(_I64, 4))
         acc = cgutils.alloca_once_value(builder, ir.Constant(_V4, [0.0] * 4))
@@ -199,7 +198,7 @@ def _kick8(finish, want_v2):
                 pn = builder.fadd(builder.load(pp, align=8), builder.fmul(dt8, w))
                 builder.store(pn, pp, align=8)
                 if finish:
-                    aw = builder.call(_intrinsic_fn(builder, "llvm.fabs.v8f64", _V8), [w])
+                    aw = _call(builder, "llvm.fabs.v8f64", [w])
                     # not |w| < 1e300, NaN included
                     nb = builder.fcmp_unordered(">=", aw, big)
                     _accumulate(builder, bad, builder.zext(nb, _I64x8))
@@ -216,11 +215,6 @@ def _kick8(finish, want_v2):
         return sig, codegen
 
     return intrinsic(typer)
-
-
-def _intrinsic_fn(builder, name, vt):
-    fn = builder.module.globals.get(name)
-    return fn or ir.Function(builder.module, ir.FunctionType(vt, [vt]), name=name)
 
 
 kick8_first = _kick8(False, False)
@@ -395,7 +389,9 @@ class _Lanes:
 
 
 def _call(b, name, args):
-    fnty = ir.FunctionType(_V4, [_V4] * len(args))
+    """Call the LLVM intrinsic ``name`` on vectors of one type (the result's too)."""
+    vt = args[0].type
+    fnty = ir.FunctionType(vt, [vt] * len(args))
     fn = b.module.globals.get(name) or ir.Function(b.module, fnty, name=name)
     return b.call(fn, args)
 
@@ -506,11 +502,7 @@ class _Frame:
         return _Lanes(self.b, v) if elem is _F64 else v
 
     def splat(self, name, i):
-        x = self.scalar(name, ir.Constant(_I64, i))
-        v = self.b.insert_element(ir.Constant(_V4, ir.Undefined), x, ir.Constant(_I32, 0))
-        return _Lanes(
-            self.b, self.b.shuffle_vector(v, v, ir.Constant(ir.VectorType(_I32, 4), [0] * 4))
-        )
+        return _Lanes(self.b, _bcast(self.b, self.scalar(name, ir.Constant(_I64, i)), 4))
 
     def _diffs(self, name, i, j, vt):
         """Per pair, ``name[w i .. w i + w-1] - name[w j .. w j + w-1]`` as one vector of
@@ -548,11 +540,7 @@ class _Frame:
         return self.b.zext(v, ir.VectorType(_I64, 4))
 
     def count(self, m64):
-        b = self.b
-        s = b.extract_element(m64, ir.Constant(_I32, 0))
-        for lane in range(1, 4):
-            s = b.add(s, b.extract_element(m64, ir.Constant(_I32, lane)))
-        return s
+        return _hsum(self.b, m64, 4)
 
     def store_lanes(self, name, v, off=None):
         """``name[off + k .. off + k+3] = v`` (lanes or an integer vector)."""
