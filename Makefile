@@ -18,7 +18,7 @@ export MKL_NUM_THREADS ?= 1
 # Rules call the `granpipe` console script: the environment's bin comes first on PATH.
 export PATH := $(CURDIR)/$(BIN):$(PATH)
 
-.PHONY: env reproduce test lint bench quick report clean-results
+.PHONY: env reproduce test lint bench bench-reference quick report clean-results
 
 $(STAMP): pyproject.toml constraints.txt
 	@$(PYTHON) -c 'import sys; assert sys.version_info[:2] == (3, 11), "granpipe needs Python 3.11, found " + sys.version' 
@@ -44,6 +44,11 @@ lint: env
 bench: env
 	$(BIN)/python benchmarks/engine.py
 	$(BIN)/python benchmarks/engine_passes.py
+
+# issue 3's reference (LAMMPS GRANULAR, Debian's build) timed beside the engine
+bench-reference: env
+	tools/lammps/install.sh
+	$(BIN)/python benchmarks/lammps_reference.py
 
 report: env
 	$(BIN)/snakemake --cores $(CORES) --report results/report.zip
