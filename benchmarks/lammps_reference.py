@@ -240,10 +240,11 @@ def systems(which, rounds, tmp):
 
 class _Chunk:
     """``steps`` steps of one code, timed in CPU time of the thread (``run()``, seconds per
-    step); also the CPU time of the whole process (other threads) and list rebuilds."""
+    step); also the CPU time of the whole process (other threads), list rebuilds, and the
+    global speed ``V`` of the mobile disks (``speed()``: both codes run the same physics)."""
 
-    def __init__(self, step, rebuilds, steps):
-        self.step, self.rebuilds, self.steps = step, rebuilds, steps
+    def __init__(self, step, rebuilds, speed, steps):
+        self.step, self.rebuilds, self.speed, self.steps = step, rebuilds, speed, steps
         self.thread = self.process = 0.0
         self.start = rebuilds()
         self.n_steps = 0
@@ -265,15 +266,25 @@ def _engine_chunk(sim, state, steps, kw):
     sim.run(state, 35, **kw)  # compiled code loaded
     state.reset_counters()
     return _Chunk(
-        lambda k: sim.run(state, k, **kw), lambda: state.neighbour_stats()["rebuilds"], steps
+        lambda k: sim.run(state, k, **kw),
+        lambda: state.neighbour_stats()["rebuilds"],
+        state.global_speed,
+        steps,
     )
 
 
 def _lammps_chunk(lmp, steps):
     lmp.command("run 35")  # set up once (as many steps as the engine's first call)
+
+    def speed():
+        v = lmp.numpy.extract_atom("v")[:, :2]
+        mobile = lmp.numpy.extract_atom("type") == 1
+        return float(np.sqrt((v[mobile] ** 2).sum()))
+
     return _Chunk(
         lambda k: lmp.command(f"run {k} pre no post no"),
         lambda: int(lmp.get_thermo("nbuild")),
+        speed,
         steps,
     )
 
@@ -326,7 +337,8 @@ def main(argv=None):
             )
             print(
                 f"{'':13s} steps per list rebuild: engine {ours.steps_per_rebuild():.0f}, LAMMPS "
-                f"{theirs.steps_per_rebuild():.0f}; process/thread CPU time: engine "
+                f"{theirs.steps_per_rebuild():.0f}; V at the end: engine {ours.speed():.4g}, "
+                f"LAMMPS {theirs.speed():.4g}; process/thread CPU time: engine "
                 f"{ours.process / ours.thread:.3f}, LAMMPS {theirs.process / theirs.thread:.3f}",
                 flush=True,
             )
