@@ -37,12 +37,13 @@ gravity, skin and rebuild criterion: a rebuild once some disk moved half the ski
 Printed per system: median ns per particle-step of each code over the rounds, and the
 ratio engine/LAMMPS: the median of the per-round ratios for the steady states; for the
 driven box, whose rounds are the phases of a drive period (``--periods`` periods), the
-period mean (:func:`_ratio`). Issue 3's box targets are that ratio (<= 1/5); its drum targets are
-absolute (12 and 25 ns against LAMMPS' 110), so the ratio times the issue's reference
-figure (``at_reference``) is what the engine's figure would be on the machine where
-LAMMPS took the reference time. Also printed: steps per list rebuild of both codes and
-the process/thread CPU-time ratio (1.000: each ran in the one thread timed). The last
-line is one JSON object.
+period mean (:func:`_ratio`). Issue 3's box targets are that ratio (<= 1/5); its drum
+targets are absolute (12 and 25 ns against LAMMPS' 110), so the ratio times the issue's
+reference figure (``at_reference``) is what the engine's figure would be on the machine
+where LAMMPS took the reference time. Also printed: steps per list rebuild of both codes,
+the global speed V of the mobile disks after the timed steps (the same physics in both),
+and the process/thread CPU-time ratio (1.000: each ran in the one thread timed). The
+last line is one JSON object.
 """
 
 from __future__ import annotations
