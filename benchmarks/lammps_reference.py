@@ -163,7 +163,7 @@ def drum_lammps(lmp, sim, state, tmp):
     ]
     for c in cmds:
         lmp.command(c)
-    _check_masses(lmp, mass[mob], mob)
+    _check_masses(lmp, mass, mob)
     return int(mob.sum())
 
 
@@ -200,13 +200,12 @@ def box_lammps(lmp, sim, state, tmp):
 
 
 def _check_masses(lmp, mass, mob):
-    """LAMMPS' per-atom masses are the engine's (the density convention of read_data)."""
+    """LAMMPS' per-atom masses of the disks ``mob`` are ``mass`` (the engine's; all disks),
+    which checks the density convention of read_data."""
     lmp.command("run 0")
-    rmass = np.ctypeslib.as_array(lmp.extract_atom("rmass"), shape=(lmp.get_natoms(),))
-    ids = np.ctypeslib.as_array(lmp.extract_atom("id"), shape=(lmp.get_natoms(),))
-    got = np.empty_like(rmass)
-    got[ids - 1] = rmass
-    if not np.allclose(got[mob], mass, rtol=1e-12):
+    got = np.empty(len(mob))
+    got[lmp.numpy.extract_atom("id") - 1] = lmp.numpy.extract_atom("rmass")
+    if not np.allclose(got[mob], mass[mob], rtol=1e-12):
         raise SystemExit("LAMMPS masses differ from the engine's: check the density column")
 
 
