@@ -1,14 +1,17 @@
-"""Throughput of the drum study: seconds per replica and ns per particle-step.
+"""Throughput of the drum study: seconds per replica and ns per mobile-particle step.
 
-Runs the real drum (736 mobile + 150 wall disks) of a config's ``drum`` section:
-placement and settling, then ``--seconds`` of rotation with and without the tangent
-dynamics, and prints the cost per step and per mobile-particle step, and the
-projected cost of one replica of that config (settling as measured, the rotation
-before t = 0, the onset and decay windows; no waiting for a continuous avalanche).
+Runs the real drum (736 mobile + 150 wall disks) of one point of a config's ``drum``
+section: the start-up (placement and fall, or settling), then ``--seconds`` of rotation
+with and without the tangent dynamics, and prints the cost per step and per mobile
+particle-step, the projected cost of one replica of that config (start-up as measured;
+tangent dynamics over the alignment, onset and decay windows; no waiting for a
+continuous avalanche), and the paper's 70,000 pairs in core-hours. ``--full`` also
+runs one whole replica through the protocol and prints its measured cost.
 
     .venv/bin/python benchmarks/drum.py [--configfile config/config.yaml] [--seconds 2]
+        [--point NAME] [--full]
 
-Numbers depend on the machine and on what else runs; run it on a quiet machine.
+Numbers depend on the machine and on what else runs: compare figures from one run.
 """
 
 from __future__ import annotations
@@ -19,41 +22,47 @@ import time
 import numpy as np
 import yaml
 
-from granpipe.drum.protocol import DrumModel, initial_tangent, replica_streams, settle
+from granpipe.drum.layout import point_sections
+from granpipe.drum.protocol import (
+    DrumModel,
+    initial_tangent,
+    prepare,
+    replica_streams,
+    run_replica,
+)
 from granpipe.drum.settings import filled, steps
+
+PAPER_PAIRS = 70_000
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--configfile", default="config/config.yaml")
+    ap.add_argument("--point", default=None, help="parameter point (default: the reference)")
     ap.add_argument("--seconds", type=float, default=2.0, help="simulated rotation per mode")
     ap.add_argument("--replica", type=int, default=0)
+    ap.add_argument("--full", action="store_true", help="also run one whole replica")
     args = ap.parse_args(argv)
-    sec = filled(yaml.safe_load(open(args.configfile))["drum"])
+    points = point_sections(filled(yaml.safe_load(open(args.configfile))["drum"]))
+    sec = points[args.point] if args.point else next(iter(points.values()))
     st = steps(sec)
     model = DrumModel.from_section(sec)
-    place, tangent_rng, _ = replica_streams(sec, args.replica)
+    print(f"point {args.point or next(iter(points))}")
 
-    # warm-up: compile (or load from cache) outside the timings
-    sim = model.simulation(sec["physics"]["omega"])
-    pos = np.zeros((model.n_mobile, 2))
-    t = time.perf_counter()
-    pile = settle(model, st, {**sec["settle"], "max_time_s": 0.01, "min_time_s": 0.0}, place)
-    print(f"warm-up (compile or cache load): {time.perf_counter() - t:.1f} s")
-
+    sim = model.simulation(model.omega)
     place, tangent_rng, _ = replica_streams(sec, args.replica)
-    pile = settle(model, st, sec["settle"], place)
-    ns_settle = pile.wall_time / (pile.n_steps * model.n_mobile) * 1e9
+    start = prepare(model, sec, st, place)
+    ns_start = start.wall_time / max(1, start.n_steps * model.n_mobile) * 1e9
     print(
-        f"settling: {pile.settle_time:.2f} s simulated ({pile.n_steps} steps) in "
-        f"{pile.wall_time:.1f} s wall: {ns_settle:.0f} ns per particle-step "
-        f"(settled={pile.settled})"
+        f"start-up ({sec['protocol']['startup']}): {start.settle_time:.2f} s simulated "
+        f"({start.n_steps} steps) in {start.wall_time:.1f} s wall: {ns_start:.0f} ns per "
+        "mobile particle-step"
     )
     n = max(st.block, int(round(args.seconds / st.dt_s / st.block)) * st.block)
     rates = {}
     for tangent in (False, True):
-        state = model.new_state(sim, pile.positions, pile.velocities)
-        pos = state.positions
+        state = model.new_state(sim, start.positions, start.velocities,
+                                wall_angle=start.wall_angle)  # fmt: skip
         if tangent:
             dr, dv = initial_tangent(model.n_mobile, tangent_rng, 0.1)
             z = np.zeros((model.geom.n_wall, 2))
@@ -66,17 +75,26 @@ def main(argv=None):
         print(
             f"rotation {'with' if tangent else 'without'} tangent: {n} steps in {wall:.2f} s: "
             f"{wall / n * 1e6:.1f} us per step, "
-            f"{wall / n / model.n_mobile * 1e9:.0f} ns per particle-step "
-            f"({wall / n / (model.n_mobile + model.geom.n_wall) * 1e9:.0f} counting wall disks)"
+            f"{wall / n / model.n_mobile * 1e9:.1f} ns per mobile particle-step"
         )
-    del pos
-    protocol_steps = st.pre_rotation + st.onset + st.decay
-    replica = pile.wall_time + protocol_steps * rates[True]
+    tangent_steps = st.alignment + st.onset + st.decay
+    replica = start.wall_time + tangent_steps * rates[True]
     print(
-        f"one replica of {args.configfile}: settling {pile.wall_time:.0f} s + "
-        f"{protocol_steps} protocol steps x {rates[True] * 1e6:.1f} us = {replica:.0f} s "
-        f"(+{st.chunk * rates[True]:.1f} s per extra chunk of waiting)"
+        f"one replica: start-up {start.wall_time:.1f} s + {tangent_steps} steps with tangent "
+        f"x {rates[True] * 1e6:.1f} us = {replica:.1f} s; {PAPER_PAIRS} pairs: "
+        f"{replica * PAPER_PAIRS / 3600:.0f} core-hours "
+        f"(+{st.chunk * rates[False]:.2f} s per chunk of waiting for a continuous avalanche)"
     )
+    if args.full:
+        ds = run_replica(sec, args.replica, snapshots=False)
+        wall = float(ds["wall_time"].values[0])
+        steps_run = int(ds["n_steps"].values[0])
+        print(
+            f"whole replica {args.replica}: {steps_run} steps in {wall:.1f} s wall, "
+            f"{wall / steps_run / model.n_mobile * 1e9:.1f} ns per mobile particle-step; "
+            f"decay window from {float(ds['decay_start'].values[0]):.1f} s; "
+            f"{PAPER_PAIRS} pairs: {wall * PAPER_PAIRS / 3600:.0f} core-hours"
+        )
 
 
 if __name__ == "__main__":

@@ -9,6 +9,11 @@ class ConfigError(GranpipeError, ValueError):
     """A configuration is invalid; the message names the offending key."""
 
 
+class RunFileError(GranpipeError, ValueError):
+    """A stage's input file is unreadable, or does not belong with the others; the
+    message names the file."""
+
+
 class SimulationError(GranpipeError, RuntimeError):
     """A simulation reached a bad state (NaN/inf, or an overlap past the bound).
 

@@ -23,6 +23,7 @@ import xarray as xr
 import yaml
 
 from . import __version__
+from .errors import RunFileError
 from .seeds import physics_hash
 
 __all__ = [
@@ -34,6 +35,7 @@ __all__ = [
     "read_dataset",
     "write_text",
     "config_from_attrs",
+    "check_run_files",
 ]
 
 _ENGINE = "netcdf4"
@@ -195,9 +197,78 @@ def write_dataset(
 
 
 def read_dataset(path: str | os.PathLike) -> xr.Dataset:
-    """Read a netCDF file fully into memory and close it."""
-    with xr.open_dataset(path, engine=_ENGINE) as ds:
-        return ds.load()
+    """Read a netCDF file fully into memory and close it.
+
+    Raises
+    ------
+    RunFileError
+        naming the file, if it is missing or not a readable netCDF file.
+    """
+    try:
+        with xr.open_dataset(path, engine=_ENGINE) as ds:
+            return ds.load()
+    except (OSError, ValueError, RuntimeError) as exc:
+        raise RunFileError(f"cannot read {path}: {exc}") from exc
+
+
+def _batch_of(path: Path) -> int | None:
+    stem = path.stem
+    if stem.startswith("batch_") and stem[6:].isdigit():
+        return int(stem[6:])
+    return None
+
+
+def check_run_files(
+    paths: Sequence[str | os.PathLike], *, study: str, stage: str = "runs"
+) -> list[dict]:
+    """Check that run files belong together before they are reduced; return their labels.
+
+    Every file must be readable, written by ``study``'s stage ``stage``, with the same
+    config hash (the same point and physics) as the first; a file named ``batch_<b>.nc``
+    must hold batch ``b``; no replica index may appear twice across the files.
+
+    Returns
+    -------
+    list of ``{"path", "batch", "replicas", "config_hash"}``, one per file.
+
+    Raises
+    ------
+    RunFileError
+        naming the offending file (and the other file, for a duplicate or a mismatch).
+    """
+    out: list[dict] = []
+    seen: dict[int, str] = {}
+    for p in map(Path, paths):
+        try:
+            with xr.open_dataset(p, engine=_ENGINE) as ds:
+                attrs = dict(ds.attrs)
+                replicas = [int(r) for r in ds["replica"].values] if "replica" in ds else []
+        except (OSError, ValueError, RuntimeError) as exc:
+            raise RunFileError(f"cannot read {p}: {exc}") from exc
+        for key, want in (("study", study), ("stage", stage)):
+            if attrs.get(key) != want:
+                raise RunFileError(
+                    f"{p} is not a {study} {stage} file ({key} = {attrs.get(key)!r})"
+                )
+        if out and attrs.get("config_hash") != out[0]["config_hash"]:
+            raise RunFileError(
+                f"{p} was computed with another configuration (config hash "
+                f"{str(attrs.get('config_hash'))[:12]}) than {out[0]['path']} "
+                f"({out[0]['config_hash'][:12]}): another point or changed physics"
+            )
+        named = _batch_of(p)
+        batch = attrs.get("batch")
+        if named is not None and batch is not None and int(batch) != named:
+            raise RunFileError(f"{p} holds batch {batch}, not batch {named} as its name says")
+        for r in replicas:
+            if r in seen:
+                raise RunFileError(f"replica {r} appears twice: in {seen[r]} and in {p}")
+            seen[r] = str(p)
+        out.append(
+            {"path": str(p), "batch": batch, "replicas": replicas,
+             "config_hash": str(attrs.get("config_hash"))}
+        )  # fmt: skip
+    return out
 
 
 def write_text(text: str, path: str | os.PathLike) -> Path:

@@ -5,11 +5,11 @@ import pytest
 
 from granpipe.analysis.fits import (
     FitResult,
-    avalanche_lag,
     bootstrap_batches,
     bootstrap_replicas,
     first_crossing,
     lag,
+    minimum_times,
     polyfit_window,
     vertex_time,
     vertex_times,
@@ -156,71 +156,21 @@ def test_bootstrap_batches_width_matches_replica_bootstrap():
     assert bat.std[0] == pytest.approx(rep.std[0], rel=0.25)
 
 
-def _drum_like(rng, R, t, onset=2.6, sign=9.0):
-    a = rng.normal(onset, 0.2, size=(R, 1))
-    z = rng.normal(sign, 1.0, size=(R, 1))
-    V = 5 + 3 * (t - a) ** 2 + 0.3 * rng.normal(size=(R, t.size))
-    lam = 0.5 * (t - z) + 2.0 * rng.normal(size=(R, t.size))
-    return V, lam
-
-
-def test_avalanche_lag_onset_and_decay():
-    t = np.arange(0.0, 15.0, 0.02)
-    rng = np.random.default_rng(7)
-    V, lam = _drum_like(rng, 60, t)
-    V[:5, -100:] = np.nan  # shorter records
-    res = avalanche_lag(
-        t,
-        V,
-        lam,
-        state_window=(1, 4),
-        sign_window=(6, 12),
-        n_resamples=300,
-        seed=1,
-        prefix="onset_",
-    )
-    assert set(res) == {"change_time", "sign_change_time", "lag"}
-    on, sc, lg = res["change_time"], res["sign_change_time"], res["lag"]
-    assert on.quantity == "onset_change_time" and lg.n == 60
-    assert lg.value == pytest.approx(sc.value - on.value)
-    for r, truth in ((on, 2.6), (sc, 9.0), (lg, 6.4)):
-        assert r.ci_low < r.value < r.ci_high
-        half = 0.5 * (r.ci_high - r.ci_low)
-        assert abs(r.value - truth) < 3 * half
-    # Decay: the state change is imposed at exactly 5 s.
-    dec = avalanche_lag(t, V, lam, state_time=5.0, sign_window=(6, 12), n_resamples=100, seed=1)
-    assert "change_time" not in dec and dec["lag"].value == pytest.approx(sc.value - 5.0)
-    assert dec["lag"].ci_high - dec["lag"].ci_low == pytest.approx(
-        dec["sign_change_time"].ci_high - dec["sign_change_time"].ci_low
-    )
-
-
-def test_avalanche_lag_auto_and_batches():
-    t = np.arange(0.0, 15.0, 0.02)
-    rng = np.random.default_rng(8)
-    V, lam = _drum_like(rng, 200, t)
-    res = avalanche_lag(
-        t,
-        V,
-        lam,
-        state_window="auto",
-        sign_window="auto",
-        half_width=1.5,
-        state_search=(0.5, 5),
-        sign_search=(5, 14),
-        smooth_q=12,
-        direction=1,
-        n_resamples=200,
-        seed=2,
-    )
-    assert res["change_time"].value == pytest.approx(2.6, abs=0.1)
-    assert res["sign_change_time"].value == pytest.approx(9.0, abs=0.5)
-    bm, bc = V.reshape(20, 10, -1).mean(1), np.full((20, t.size), 10)
-    lm = lam.reshape(20, 10, -1).mean(1)
-    kw = dict(sign_window=(6, 12), weighted=False)
-    bat = avalanche_lag(t, bm, lm, batch_counts=bc, n_resamples=200, seed=2, **kw)
-    assert bat["lag"].n == 200
-    # Same pooled mean, same unweighted fit as from the replicas themselves.
-    rep = avalanche_lag(t, V, lam, n_resamples=0, **kw)
-    assert bat["change_time"].value == pytest.approx(rep["change_time"].value, rel=1e-9)
-    assert np.isnan(rep["lag"].ci_low) and bat["lag"].ci_low < bat["lag"].value
+def test_minimum_refuses_a_maximum_and_a_vertex_outside_the_window():
+    """Only an upward parabola with its vertex inside the window is an onset (a minimum)."""
+    t = T_GRID
+    rng = np.random.default_rng(3)
+    noise = 0.01 * rng.standard_normal(t.size)
+    up = 0.2 + 0.05 * (t - 2.6) ** 2 + noise
+    down = 0.2 - 0.05 * (t - 2.6) ** 2 + noise
+    rising = 0.2 + 0.05 * (t - 0.2) ** 2 + noise  # vertex at 0.2 s, window 1-4 s
+    Y = np.stack([up, down, rising])
+    value, err, c2, c2_err, reason, _ = minimum_times(t, Y, (1.0, 4.0))
+    assert list(reason) == [0, 2, 3]
+    assert value[0] == pytest.approx(2.6, abs=5 * err[0]) and np.isnan(value[1:]).all()
+    # the curvature is reported with its error either way, and its sign is significant
+    assert c2[0] == pytest.approx(0.05, abs=5 * c2_err[0]) and c2[1] < -10 * c2_err[1]
+    refused = vertex_time(t, down, (1.0, 4.0), require_minimum=True)
+    assert np.isnan(refused.value) and "maximum" in refused.note
+    plain = vertex_time(t, down, (1.0, 4.0))
+    assert plain.value == pytest.approx(2.6, abs=0.05) and plain.note == ""

@@ -53,6 +53,7 @@ def synthetic_runs(tmp_path, *, n_batches=3, batch_size=4, vertex=3.0, zero_on=1
             )
         ds = batch_dataset(recs, st, d, 1.3846)
         path = tmp_path / f"batch_{b:04d}.nc"
-        write_dataset(ds, path, config_subset={"synthetic": True})
+        write_dataset(ds, path, config_subset={"synthetic": True}, study="drum", stage="runs",
+                      batch=b)  # fmt: skip
         paths.append(path)
     return paths

@@ -160,3 +160,59 @@ def test_heavy_tailed_lambda_unweighted_fit_is_unbiased(tmp_path):
     # the weighted fit's level at 8 s is pulled low (true level 0), moving the zero by seconds
     assert ols.coefficients[0] > -0.1 and wls.coefficients[0] < -0.3
     assert abs(wls.value - 8.0) > 1.0
+
+
+def test_a_downward_parabola_is_refused_as_an_onset(tmp_path):
+    """V with a maximum at 3 s: the vertex fit is no minimum, in the full sample and in
+    every resample; the row is empty and says why, and no onset lag is formed."""
+    import xarray as xr
+
+    paths = synthetic_runs(tmp_path, n_batches=2, batch_size=4)
+    flipped = []
+    for p in paths:
+        ds = xr.open_dataset(p).load()
+        ds["speed_onset"].values = 1.0 - ds["speed_onset"].values
+        flipped.append(p.with_name("flipped_" + p.name))
+        ds.to_netcdf(flipped[-1])
+    ens = reduce_runs(flipped)
+    results, _ = drum_fits(ens, load_units(flipped), {**FITS, "bootstrap_resamples": 200})
+    r = {x.quantity: x for x in results}
+    for suffix in ("", "_auto"):
+        on = r["onset_time" + suffix]
+        assert np.isnan(on.value) and on.note, on
+        assert np.isnan(r["onset_lag" + suffix].value)
+        assert r["onset_curvature" + suffix].value < -5 * r["onset_curvature" + suffix].fit_error
+        assert r["onset_valid_fraction" + suffix].value < 0.05
+    # the sign change does not depend on the onset and is still found
+    assert abs(r["onset_sign_change_time"].value - 12.0) < 1.0
+
+
+def test_onset_minimum_accepted_in_almost_every_resample(fitted):
+    _, r, _ = fitted
+    for suffix in ("", "_auto"):
+        assert r["onset_valid_fraction" + suffix].value >= 0.95
+        c2 = r["onset_curvature" + suffix]
+        assert c2.value == pytest.approx(0.01, abs=4 * c2.fit_error) and c2.value > 0
+
+
+def test_startup_excess_measures_the_early_decay(tmp_path):
+    """A flat, noisy V with (and without) a decay from 0.2 above it over the first 0.3 s:
+    the early mean exceeds the minimum's neighbourhood by many standard errors (or not)."""
+    import xarray as xr
+
+    paths = synthetic_runs(tmp_path, n_batches=2, batch_size=4)
+    flat, decayed = [], []
+    for p in paths:
+        ds = xr.open_dataset(p).load()
+        t = ds["seconds_onset"].values
+        ds["speed_onset"].values = ds["speed_onset"].values - 0.01 * (t - 3.0) ** 2
+        flat.append(p.with_name("flat_" + p.name))
+        ds.to_netcdf(flat[-1])
+        ds["speed_onset"].values = ds["speed_onset"].values + 0.2 * np.exp(-t / 0.3)
+        decayed.append(p.with_name("decayed_" + p.name))
+        ds.to_netcdf(decayed[-1])
+    for files, decays in ((decayed, True), (flat, False)):
+        ens = reduce_runs(files)
+        r = {x.quantity: x for x in drum_fits(ens, load_units(files), FITS)[0]}
+        sigma = r["onset_startup_excess_sigma"].value
+        assert (sigma > 10) if decays else (sigma < 3), sigma

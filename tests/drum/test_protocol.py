@@ -9,7 +9,7 @@ import pytest
 import xarray as xr
 
 from granpipe.drum.protocol import DrumModel, run_replica
-from granpipe.drum.settings import seed_physics, steps
+from granpipe.drum.settings import omega, seed_physics, steps, tiny_section
 from granpipe.drum.stages import init_stage, runs_stage
 from granpipe.errors import SimulationError
 from granpipe.io import config_from_attrs, read_dataset
@@ -75,7 +75,7 @@ def test_drum_stops_at_the_stop_time(tiny, batch2):
     turned = np.angle(np.exp(1j * (a1 - a0)))
     assert np.all(turned < 0)
     st = steps(tiny)
-    expected = -tiny["physics"]["omega"] * (run["decay_start"].values[0] / st.dt_s) * st.dt
+    expected = -omega(tiny["physics"]) * (run["decay_start"].values[0] / st.dt_s) * st.dt
     np.testing.assert_allclose(turned, expected, rtol=1e-6)
 
 
@@ -123,7 +123,7 @@ def test_cli_replica_writes_a_run_file(tmp_path, repo):
     assert proc.returncode == 0, proc.stderr
     ds = xr.open_dataset(out)
     assert int(ds["replica"].values[0]) == 5 and ds.attrs["stage"] == "replica"
-    assert "ns per particle-step" in proc.stderr
+    assert "ns per mobile particle-step" in proc.stderr
 
 
 def test_initial_tangent_sets_about_ten_percent_of_components():
@@ -136,3 +136,49 @@ def test_initial_tangent_sets_about_ten_percent_of_components():
     assert np.abs(du).max() <= 1.0 and (du < 0).any() and (du > 0).any()
     # each of the four kinds of component is drawn, not only positions
     assert (dr[:, 0] != 0).any() and (dv[:, 1] != 0).any()
+
+
+def test_a_disk_released_at_the_top_falls_freely_with_no_cap(tiny):
+    """Paper start-up: a disk released at rest near the top of the turning drum has, after
+    0.15 s and before it touches anything, the free-fall speed sqrt(2 g h) of its drop h
+    (velocity Verlet is exact under constant gravity) - far above the settled start-up's
+    speed cap."""
+    from granpipe.drum.protocol import fall
+
+    sec = tiny_section({}, pre_rotation_deg=0.06, tangent_alignment_s=0.0)  # 0.15 s
+    sec["physics"].update(n_small=1, n_large=1)  # the second disk rests out of the way
+    st = steps(sec)
+    model = DrumModel.from_section(sec)
+    top = model.geom.inner_radius - 0.6
+    start = fall(model, st, np.array([[0.0, top], [5.0, -5.0]]))
+    g = float(sec["physics"]["g"])
+    drop = top - start.positions[0, 1]
+    v = start.velocities[0]
+    assert drop > 5.0 and abs(v[0]) < 1e-12
+    assert np.hypot(*v) == pytest.approx(np.sqrt(2.0 * g * drop), rel=1e-9)
+    assert np.hypot(*v) > 2.0 * sec["settle"]["max_speed"]
+    assert start.n_steps == st.pre_rotation and start.settled
+
+
+def test_the_drum_has_turned_exactly_one_degree_at_t0(tmp_path):
+    """Paper start-up on the tiny drum with the paper's 1 degree: placement, fall (stage
+    init), tangent alignment (stage runs), then t = 0 - the wall disks of the t = 0
+    snapshot sit at 1 degree of clockwise rotation, to within half a step's turn."""
+    sec = tiny_section({}, pre_rotation_deg=1.0)
+    sec["ensemble"].update(batch_size=1)
+    init_stage(sec, 0, tmp_path / "init.nc")
+    runs_stage(sec, 0, tmp_path / "init.nc", tmp_path / "run.nc")
+    run = read_dataset(tmp_path / "run.nc")
+    model = DrumModel.from_section(sec)
+    st = steps(sec)
+    wall0 = run["wall_position"].sel(snapshot="t=0").values
+    a0 = np.arctan2(model.walls0[:, 1], model.walls0[:, 0])
+    a = np.arctan2(wall0[:, 1], wall0[:, 0])
+    turned = -np.angle(np.exp(1j * (a - a0)))  # clockwise > 0
+    half_step = 0.5 * omega(sec["physics"]) * st.dt
+    np.testing.assert_allclose(turned, np.radians(1.0), atol=half_step + 1e-12)
+    assert st.pre_rotation * st.dt_s == pytest.approx(2.5, rel=1e-4)
+    init = read_dataset(tmp_path / "init.nc")
+    # the init file ends the fall tangent_alignment_s before t = 0
+    fell = float(init["settle_time"].values[0])
+    assert fell == pytest.approx(2.5 - sec["protocol"]["tangent_alignment_s"], abs=st.block_s)

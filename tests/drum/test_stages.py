@@ -5,13 +5,14 @@ import pandas as pd
 import pytest
 
 from granpipe.analysis.summary import COLUMNS
-from granpipe.drum.layout import FIGURES
+from granpipe.drum.layout import COMPARISON_FIGURES, FIGURES, point_names, rule_params
 from granpipe.drum.stages import (
     ensemble_stage,
     figures_stage,
     fits_stage,
     init_stage,
     runs_stage,
+    summary_stage,
 )
 from granpipe.io import read_dataset
 
@@ -30,31 +31,45 @@ TINY_FITS = {
 
 @pytest.fixture(scope="module")
 def pipeline(tiny, tmp_path_factory):
+    """Both start-ups of the tiny drum, three batches of one, through every stage."""
     tmp = tmp_path_factory.mktemp("pipe")
-    sec = {**tiny, "ensemble": {**tiny["ensemble"], "batch_size": 1}}
-    runs = []
-    for b in (0, 1, 2):
-        init_stage(sec, b, tmp / f"init_{b}.nc")
-        runs_stage(sec, b, tmp / f"init_{b}.nc", tmp / f"run_{b}.nc")
-        runs.append(tmp / f"run_{b}.nc")
-    params = {"ensemble": {"exclude_flagged": False}, "fits": TINY_FITS}
-    ensemble_stage(params, runs, tmp / "ensemble.nc")
-    fits_stage(params, tmp / "ensemble.nc", runs, tmp / "fits.nc", tmp / "summary.csv")
-    paths = figures_stage({"figures": {"dpi": 50}}, tmp / "ensemble.nc", tmp / "fits.nc",
-                          runs[0], tmp / "figures")  # fmt: skip
-    return tmp, paths
+    sec = {**tiny, "protocol": {**tiny["protocol"], "startup": ["paper", "settled"]},
+           "ensemble": {**tiny["ensemble"], "batch_size": 1, "n_replicas": 3,
+                        "exclude_flagged": False},
+           "fits": {**tiny["fits"], **TINY_FITS}}  # fmt: skip
+    params = rule_params(sec)
+    fits = []
+    for name in point_names(sec):
+        runs = []
+        for b in (0, 1, 2):
+            init, run = tmp / name / f"init_{b}.nc", tmp / name / f"batch_{b:04d}.nc"
+            init_stage(params["sim"][name], b, init)
+            runs_stage(params["sim"][name], b, init, run)
+            runs.append(run)
+        ensemble_stage(params["ensemble"], runs, tmp / "ensemble" / f"{name}.nc")
+        fits_stage(params["fits"][name], tmp / "ensemble" / f"{name}.nc", runs,
+                   tmp / "fits" / f"{name}.nc")  # fmt: skip
+        fits.append(tmp / "fits" / f"{name}.nc")
+    summary_stage(fits, tmp / "summary.csv")
+    names = point_names(sec)
+    paths = figures_stage(
+        {**params["figures"], "figures": {"dpi": 50}},
+        [tmp / "ensemble" / f"{n}.nc" for n in names], fits,
+        tmp / names[0] / "batch_0000.nc", tmp / "figures",
+    )  # fmt: skip
+    return tmp, paths, names
 
 
 def test_ensemble_counts_every_replica(pipeline):
-    tmp, _ = pipeline
-    ens = read_dataset(tmp / "ensemble.nc")
+    tmp, _, names = pipeline
+    ens = read_dataset(tmp / "ensemble" / f"{names[0]}.nc")
     assert ens.attrs["n_replicas"] == 3
     assert (ens["lambda_onset_count"].values == 3).all()
     assert ens.attrs["stage"] == "ensemble"
 
 
 def test_summary_rows_have_the_design_columns(pipeline):
-    tmp, _ = pipeline
+    tmp, _, _ = pipeline
     table = pd.read_csv(tmp / "summary.csv")
     assert list(table.columns) == COLUMNS
     assert set(table["study"]) == {"drum"}
@@ -62,23 +77,32 @@ def test_summary_rows_have_the_design_columns(pipeline):
     for q in ("onset_time", "onset_sign_change_time", "onset_lag", "decay_sign_change_time",
               "decay_lag", "onset_time_auto", "decay_lag_auto"):  # fmt: skip
         assert q in names
-    row = table.set_index("quantity").loc["onset_time"]
+        assert q + "[startup=settled]" in names  # the second point's rows, labelled
+    rows = table.set_index("quantity")
+    row = rows.loc["onset_time_auto"]
     assert row["paper_value"] == 2.628 and row["unit"] == "s" and row["n"] == 3
-    assert np.isfinite(row["value"]) and np.isfinite(row["fit_error"])
+    # the paper's numbers stand beside the reference point's rows only
+    assert np.isnan(rows.loc["onset_time_auto[startup=settled]", "paper_value"])
+    for q in ("onset_curvature", "onset_valid_fraction", "onset_startup_excess"):
+        assert q in names
 
 
 def test_fits_file_holds_values_and_curves(pipeline):
-    tmp, _ = pipeline
-    fits = read_dataset(tmp / "fits.nc")
+    tmp, _, names = pipeline
+    fits = read_dataset(tmp / "fits" / f"{names[0]}.nc")
     assert fits["onset_time"].attrs["units"] == "s"
+    # a refused onset says why, in the file
+    if not np.isfinite(fits["onset_time"].values):
+        assert fits["onset_time"].attrs["note"]
     assert fits["lambda_bar_onset"].dims == ("time_onset",)
     assert "onset_time_ci_low" in fits and "fit_lambda_decay_config" in fits
 
 
-def test_four_figures_in_png_and_pdf(pipeline):
-    tmp, paths = pipeline
+def test_every_figure_in_png_and_pdf(pipeline):
+    tmp, paths, _ = pipeline
     names = sorted(p.name for p in paths)
-    expected = sorted(f"fig{k}_{n}.{e}" for k, n in FIGURES.items() for e in ("png", "pdf"))
+    figs = {**FIGURES, **COMPARISON_FIGURES}
+    expected = sorted(f"fig{k}_{n}.{e}" for k, n in figs.items() for e in ("png", "pdf"))
     assert names == expected
     for p in paths:
         assert p.stat().st_size > 1000

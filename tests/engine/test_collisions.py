@@ -203,3 +203,44 @@ def test_box_flat_wall_converges_to_analytic(wall, tangential):
         )
     assert errs[1][0] < 1e-3 and errs[1][1] < 1e-3, errs
     assert errs[1][0] < errs[0][0], errs
+
+
+def _max_head_on_overlap(sim, speed):
+    """Largest overlap [d_s] of a small disk striking a fixed one head-on at ``speed``
+    (a disk landing on a pile that does not give way)."""
+    pos = np.array([[-0.5 - 1e-3, 0.0], [0.5 + 1e-3, 0.0]])
+    vel = np.array([[speed, 0.0], [0.0, 0.0]])
+    state = sim.new_state(pos, np.full(2, A_SMALL), np.ones(2), velocities=vel,
+                          is_wall=np.array([False, True]))  # fmt: skip
+    deepest = 0.0
+    for _ in range(int(0.2 / sim.dt)):  # the contact ends after ~0.14 t0
+        sim.run(state, 1)
+        gap = abs(state.positions[1, 0] - state.positions[0, 0]) - 2 * A_SMALL
+        deepest = max(deepest, -gap)
+    return deepest
+
+
+def test_overlap_bound_passes_a_deep_impact_and_stops_a_disk_passing_through():
+    """The drum's falling disks strike the pile at ~9 d_s/t0: a head-on impact at that
+    speed on a disk that does not give way overlaps by the damped oscillator's amplitude,
+    more than half the radius - physical, passed by the bound 1 and refused by the bound
+    0.5. At 25 d_s/t0 the centre would cross the other disk's rim: refused, naming the
+    pair."""
+    from granpipe.errors import SimulationError
+
+    dt = DT_DRUM / 10
+    deep = Simulation(DRUM, dt, gravity=(0.0, 0.0), max_overlap=1.0)
+    m = 1.0  # against a disk of infinite mass
+    w0 = math.sqrt(DRUM.k_n / m)
+    zeta = DRUM.gamma_n / (2.0 * math.sqrt(DRUM.k_n * m))
+    wd = w0 * math.sqrt(1.0 - zeta**2)
+    t_max = math.atan2(wd, zeta * w0) / wd  # the overlap rate vanishes here
+    amplitude = 9.0 / wd * math.exp(-zeta * w0 * t_max) * math.sin(wd * t_max)
+    got = _max_head_on_overlap(deep, 9.0)
+    assert got == pytest.approx(amplitude, rel=2e-3)
+    assert 0.5 * A_SMALL < got < A_SMALL
+    with pytest.raises(SimulationError, match="overlap deeper"):
+        _max_head_on_overlap(deep.replace(max_overlap=0.5), 9.0)
+    with pytest.raises(SimulationError, match="overlap deeper") as err:
+        _max_head_on_overlap(deep, 25.0)
+    assert "particle=0" in str(err.value) and "other=1" in str(err.value)

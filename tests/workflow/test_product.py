@@ -54,7 +54,7 @@ KNOBS = {
         batch_size_key=("ensemble", "batch_size"),
         grow_rules=frozenset({"drum_init", "drum_runs"}),
         sim_rules=frozenset({"drum_init", "drum_runs"}),
-        fit_rules=frozenset({"drum_fits", "drum_figures"}),
+        fit_rules=frozenset({"drum_fits", "drum_summary", "drum_figures"}),
         figure_rule="drum_figures",
         batch_glob="runs/*/batch_*.nc",
     ),
@@ -251,6 +251,26 @@ def test_growing_the_ensemble_reuses_every_batch(quick):
         assert len(after) == len(before) + 1
         for p, (content, mtime) in snap.items():
             assert p.read_bytes() == content and p.stat().st_mtime_ns == mtime
+
+
+def test_adding_a_drum_period_plans_only_its_point(quick):
+    """A second drum period is its own point: only its batches, its ensemble and fits, and
+    the summary and figures that gather every point are planned."""
+    workdir, base = quick
+    if "drum" not in studies(base):
+        pytest.skip("the drum study is not part of this scale")
+    cfg = copy.deepcopy(base)
+    cfg["studies"] = ["drum"]
+    period = cfg["drum"]["physics"]["period_s"]
+    period = period[0] if isinstance(period, list) else period
+    cfg["drum"]["physics"]["period_s"] = [period, period / 2]
+    jobs = planned_jobs(workdir, write_config(workdir, cfg, "two_periods.yaml"))
+    ens = base["drum"]["ensemble"]
+    n = -(-ens["n_replicas"] // ens["batch_size"])
+    assert jobs == {
+        "drum_init": n, "drum_runs": n, "drum_ensemble": 1, "drum_fits": 1,
+        "drum_summary": 1, "drum_figures": 1, "all": 1,
+    }, jobs  # fmt: skip
 
 
 def test_sigkill_mid_write_leaves_nothing_and_rerun_is_identical(quick):

@@ -1,38 +1,42 @@
-# drum study (SPEC.md §1): stages init -> runs -> ensemble -> fits -> figures.
-# Rules only call `granpipe drum <stage>`; params carry the exact config subset each stage
-# depends on (schema defaults filled), so a config edit reruns exactly what it touches:
-# physics/settle/protocol/batch_size -> everything; exclude_flagged -> ensemble onwards;
-# fits -> fits and figures; figures -> figures. n_replicas only adds batches.
+# drum study (docs/drum.md): per parameter point init -> runs -> ensemble -> fits, then
+# one summary and the figures. Rules only call `granpipe drum <stage>`; params carry the
+# exact config subset each stage depends on, built in granpipe.drum.layout.rule_params,
+# so a config edit reruns exactly what it touches: a point's physics/settle/protocol or
+# batch_size -> that point's simulations and everything after; exclude_flagged ->
+# ensembles onwards; fits -> fits, summary and figures; figures -> figures. n_replicas
+# only adds batches; a new period or start-up only adds its point.
+
+import re
 
 from granpipe.drum import layout as drum_layout
-from granpipe.drum.settings import PHYSICS_KEYS as DRUM_PHYSICS_KEYS
 from granpipe.drum.settings import filled as drum_filled
 
 DRUM = drum_filled(config.get("drum", {}))
-DRUM_SIM = {
-    **{k: DRUM[k] for k in DRUM_PHYSICS_KEYS},
-    "ensemble": pick(DRUM["ensemble"], "batch_size"),
-}
-DRUM_ENSEMBLE = {"ensemble": pick(DRUM["ensemble"], "exclude_flagged")}
-DRUM_FITS = {**DRUM_ENSEMBLE, "fits": DRUM["fits"]}
-DRUM_RUNS = [out("drum", f) for f in drum_layout.run_files(DRUM)]
+DRUM_POINTS = drum_layout.point_sections(DRUM)
+DRUM_PARAMS = drum_layout.rule_params(DRUM)
+DRUM_REF = next(iter(DRUM_POINTS))
 DRUM_BATCH_MIN = DRUM["ensemble"]["batch_size"] * DRUM["resources"]["replica_minutes"]
+
+
+def drum_runs_of(point):
+    return [out("drum", f) for f in drum_layout.run_files(DRUM, point)]
 
 
 wildcard_constraints:
     drum_batch=r"\d{4}",
+    drum_point="|".join(re.escape(p) for p in DRUM_POINTS),
 
 
 rule drum_init:
-    """Random placement and settling of the replicas of one batch."""
+    """Random placement and start-up of the replicas of one batch of one point."""
     output:
-        out("drum", "init", drum_layout.point_name(DRUM), "batch_{drum_batch}.nc"),
+        out("drum", "init", "{drum_point}", "batch_{drum_batch}.nc"),
     params:
-        json=lambda w: as_json(DRUM_SIM),
+        json=lambda w: as_json(DRUM_PARAMS["sim"][w.drum_point]),
     conda:
         "../envs/granpipe.yaml"
     log:
-        log_path("drum", "init", "batch_{drum_batch}.log"),
+        log_path("drum", "init", "{drum_point}", "batch_{drum_batch}.log"),
     threads: DRUM["ensemble"]["threads"]
     resources:
         runtime=lambda w, threads: int(10 + 0.3 * DRUM_BATCH_MIN / threads),
@@ -45,17 +49,17 @@ rule drum_init:
 
 
 rule drum_runs:
-    """Onset window, continuous avalanche, decay window for the replicas of one batch."""
+    """Onset window, continuous avalanche, decay window for one batch of one point."""
     input:
         init=rules.drum_init.output[0],
     output:
-        out("drum", "runs", drum_layout.point_name(DRUM), "batch_{drum_batch}.nc"),
+        out("drum", "runs", "{drum_point}", "batch_{drum_batch}.nc"),
     params:
-        json=lambda w: as_json(DRUM_SIM),
+        json=lambda w: as_json(DRUM_PARAMS["sim"][w.drum_point]),
     conda:
         "../envs/granpipe.yaml"
     log:
-        log_path("drum", "runs", "batch_{drum_batch}.log"),
+        log_path("drum", "runs", "{drum_point}", "batch_{drum_batch}.log"),
     threads: DRUM["ensemble"]["threads"]
     resources:
         runtime=lambda w, threads: int(10 + 1.2 * DRUM_BATCH_MIN / threads),
@@ -68,20 +72,20 @@ rule drum_runs:
 
 
 rule drum_ensemble:
-    """Streaming reduction of every batch to mean, standard error and count."""
+    """Streaming reduction of every batch of one point to mean, standard error and count."""
     input:
-        runs=DRUM_RUNS,
+        runs=lambda w: drum_runs_of(w.drum_point),
     output:
-        out("drum", drum_layout.ensemble_file(DRUM)),
+        out("drum", "ensemble", "{drum_point}.nc"),
     params:
-        json=lambda w: as_json(DRUM_ENSEMBLE),
+        json=lambda w: as_json(DRUM_PARAMS["ensemble"]),
     conda:
         "../envs/granpipe.yaml"
     log:
-        log_path("drum", "ensemble.log"),
+        log_path("drum", "ensemble", "{drum_point}.log"),
     threads: 1
     resources:
-        runtime=lambda w: 10 + len(DRUM_RUNS) // 50,
+        runtime=lambda w: 10 + len(drum_runs_of(w.drum_point)) // 50,
         mem_mb=2000,
     shell:
         "granpipe drum ensemble --params {params.json:q} --out {output:q} {input.runs:q}"
@@ -89,39 +93,58 @@ rule drum_ensemble:
 
 
 rule drum_fits:
-    """Onset time, sign changes and lags with fit errors and bootstrap CIs; summary.csv."""
+    """Onset time, sign changes and lags of one point with fit errors and bootstrap CIs."""
     input:
         ensemble=rules.drum_ensemble.output[0],
-        runs=DRUM_RUNS,
+        runs=lambda w: drum_runs_of(w.drum_point),
     output:
-        fits=out("drum", drum_layout.fits_file(DRUM)),
-        summary=report(
+        out("drum", "fits", "{drum_point}.nc"),
+    params:
+        json=lambda w: as_json(DRUM_PARAMS["fits"][w.drum_point]),
+    conda:
+        "../envs/granpipe.yaml"
+    log:
+        log_path("drum", "fits", "{drum_point}.log"),
+    threads: 1
+    resources:
+        runtime=lambda w: 15 + len(drum_runs_of(w.drum_point)) // 20,
+        mem_mb=4000,
+    shell:
+        "granpipe drum fits --params {params.json:q} --ensemble {input.ensemble:q}"
+        " --out {output:q} {input.runs:q} > {log:q} 2>&1"
+
+
+rule drum_summary:
+    """Every point's fitted numbers in summary.csv, the paper's beside the reference's."""
+    input:
+        fits=[out("drum", drum_layout.fits_file(p)) for p in DRUM_POINTS],
+    output:
+        report(
             out("drum", drum_layout.summary_file()),
             category="drum",
             subcategory="summary",
             caption="../report/drum_summary.rst",
         ),
-    params:
-        json=lambda w: as_json(DRUM_FITS),
     conda:
         "../envs/granpipe.yaml"
     log:
-        log_path("drum", "fits.log"),
+        log_path("drum", "summary.log"),
     threads: 1
     resources:
-        runtime=lambda w: 15 + len(DRUM_RUNS) // 20,
-        mem_mb=4000,
+        runtime=10,
+        mem_mb=1000,
     shell:
-        "granpipe drum fits --params {params.json:q} --ensemble {input.ensemble:q}"
-        " --out {output.fits:q} --summary {output.summary:q} {input.runs:q} > {log:q} 2>&1"
+        "granpipe drum summary --out {output:q} {input.fits:q} > {log:q} 2>&1"
 
 
 rule drum_figures:
-    """Figs. 2-5 of the paper (PNG for the report, PDF beside them)."""
+    """Figs. 2-5 of the paper for the reference point, and Figs. 6-7 across points."""
     input:
-        ensemble=rules.drum_ensemble.output[0],
-        fits=rules.drum_fits.output.fits,
-        snapshot=out("drum", drum_layout.run_file(DRUM, DRUM["figures"]["snapshot_batch"])),
+        ensembles=[out("drum", drum_layout.ensemble_file(p)) for p in DRUM_POINTS],
+        fits=[out("drum", drum_layout.fits_file(p)) for p in DRUM_POINTS],
+        snapshot=out(
+            "drum", drum_layout.run_file(DRUM_POINTS[DRUM_REF], DRUM["figures"]["snapshot_batch"])
+        ),
     output:
         fig2=report(
             out("drum", "figures", "fig2_snapshot.png"),
@@ -143,9 +166,21 @@ rule drum_figures:
             category="drum",
             caption="../report/drum_fig5.rst",
         ),
+        fig6=report(
+            out("drum", "figures", "fig6_startup.png"),
+            category="drum",
+            caption="../report/drum_fig6.rst",
+        ),
+        fig7=report(
+            out("drum", "figures", "fig7_lag_vs_rotation.png"),
+            category="drum",
+            caption="../report/drum_fig7.rst",
+        ),
         pdf=[out("drum", f) for f in drum_layout.figure_files(("pdf",))],
     params:
-        json=lambda w: as_json({"figures": DRUM["figures"]}),
+        json=lambda w: as_json(DRUM_PARAMS["figures"]),
+        ensembles=lambda w, input: " ".join(f"--ensemble '{e}'" for e in input.ensembles),
+        fits=lambda w, input: " ".join(f"--fits '{f}'" for f in input.fits),
         outdir=lambda w, output: str(Path(output.fig2).parent),
     conda:
         "../envs/granpipe.yaml"
@@ -156,8 +191,8 @@ rule drum_figures:
         runtime=10,
         mem_mb=2000,
     shell:
-        "granpipe drum figures --params {params.json:q} --ensemble {input.ensemble:q}"
-        " --fits {input.fits:q} --snapshot {input.snapshot:q} --outdir {params.outdir:q}"
+        "granpipe drum figures --params {params.json:q} {params.ensembles}"
+        " {params.fits} --snapshot {input.snapshot:q} --outdir {params.outdir:q}"
         " > {log:q} 2>&1"
 
 
@@ -165,6 +200,6 @@ register_targets(
     "drum",
     lambda: [
         *rules.drum_figures.output,
-        rules.drum_fits.output.summary,
+        rules.drum_summary.output[0],
     ],
 )

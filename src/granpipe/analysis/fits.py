@@ -34,7 +34,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .ensemble import pooled_batch_mean, replica_mean_sem
 from .smoothing import moving_average
 
 __all__ = [
@@ -50,7 +49,9 @@ __all__ = [
     "resample_counts",
     "bootstrap_replicas",
     "bootstrap_batches",
-    "avalanche_lag",
+    "minimum_times",
+    "argmin_time",
+    "MINIMUM_REASONS",
 ]
 
 
@@ -78,6 +79,9 @@ class FitResult:
         covariance (already scaled as described by ``error_scale``).
     chi2_red : float
         Reduced χ² of the fit (weighted residuals when SEMs were given).
+    note : str
+        Why ``value`` is NaN when a fit was refused (e.g. a vertex that is a maximum),
+        else empty.
     """
 
     quantity: str
@@ -96,6 +100,7 @@ class FitResult:
     covariance: np.ndarray | None = field(default=None, repr=False)
     chi2_red: float = math.nan
     method: str = ""
+    note: str = ""
 
     def with_ci(self, boot: BootstrapResult, column: int = 0) -> FitResult:
         """A copy carrying the bootstrap interval of ``boot`` (column ``column``)."""
@@ -278,6 +283,45 @@ def vertex_times(t, Y, window, sigma=None, *, t_ref=None, error_scale="auto"):
     return value, err, dict(coef=coef, cov=cov, chi2_red=chi2_red, n_points=n_points, t_ref=t_ref)
 
 
+MINIMUM_REASONS = {
+    0: "",
+    1: "too few points in the window for a quadratic fit",
+    2: "the fitted parabola has no positive curvature: its vertex is a maximum",
+    3: "the vertex lies outside the fit window",
+}
+"""Codes of :func:`minimum_times`: why a vertex was not accepted as a minimum."""
+
+
+def minimum_times(t, Y, window, sigma=None, *, t_ref=None, error_scale="auto"):
+    """Vertices of quadratic fits accepted only as minima inside their windows.
+
+    A vertex is a minimum of V only if the curvature c₂ > 0 and it lies within the fit
+    window [t_lo, t_hi]; otherwise its value is NaN and ``reason`` says why
+    (:data:`MINIMUM_REASONS`).
+
+    Returns
+    -------
+    value, fit_error : (...,) [time]
+    curvature, curvature_error : (...,) [Y/time²], the fitted c₂ and its standard error
+    reason : (...,) int
+    extras : dict as :func:`vertex_times`
+    """
+    value, err, ex = vertex_times(t, Y, window, sigma, t_ref=t_ref, error_scale=error_scale)
+    c2 = ex["coef"][..., 2]
+    with np.errstate(invalid="ignore"):
+        c2_err = np.sqrt(ex["cov"][..., 2, 2])
+    lo = np.asarray(window[0], dtype=np.float64)
+    hi = np.asarray(window[1], dtype=np.float64)
+    reason = np.where(
+        ~np.isfinite(c2),
+        1,
+        np.where(c2 <= 0, 2, np.where((value < lo) | (value > hi) | ~np.isfinite(value), 3, 0)),
+    )
+    value = np.where(reason == 0, value, np.nan)
+    err = np.where(reason == 0, err, np.nan)
+    return value, err, c2, c2_err, reason, ex
+
+
 def zero_crossing_times(t, Y, window, sigma=None, *, t_ref=None, error_scale="auto"):
     """Zero −c₀/c₁ of linear fits on a window, vectorised.
 
@@ -302,16 +346,19 @@ def first_crossing(t, Y, search=None, direction: int = 0) -> np.ndarray:
     Parameters
     ----------
     t : (T,) ; Y : (..., T), e.g. λ̄ (NaN samples never bracket a crossing)
-    search : (t_lo, t_hi), optional
+    search : (t_lo, t_hi), optional; each bound a float or an array (..., 1)
     direction : +1 (− to +), −1 (+ to −) or 0 (either)
 
     Returns (...,) the linearly interpolated crossing time, NaN if none.
     """
     t = np.asarray(t, dtype=np.float64)
     Y = np.asarray(Y, dtype=np.float64)
-    inside = np.ones_like(t, dtype=bool) if search is None else (t >= search[0]) & (t <= search[1])
+    if search is None:
+        inside = np.ones_like(t, dtype=bool)
+    else:  # bounds may be arrays (..., 1), one search range per series
+        inside = (t >= np.asarray(search[0])) & (t <= np.asarray(search[1]))
     y0, y1 = Y[..., :-1], Y[..., 1:]
-    ok = inside[:-1] & inside[1:] & np.isfinite(y0) & np.isfinite(y1)
+    ok = inside[..., :-1] & inside[..., 1:] & np.isfinite(y0) & np.isfinite(y1)
     if direction > 0:
         cross = ok & (y0 < 0) & (y1 >= 0)
     elif direction < 0:
@@ -327,7 +374,9 @@ def first_crossing(t, Y, search=None, direction: int = 0) -> np.ndarray:
     return np.where(has, tc, np.nan)
 
 
-def _argmin_time(t, Y, search, smooth_q):
+def argmin_time(t, Y, search, smooth_q):
+    """Time of the smallest value of each series within ``search`` after a
+    (2·smooth_q+1)-point moving average, vectorised over (..., T); NaN if none."""
     t = np.asarray(t, dtype=np.float64)
     Ys = moving_average(Y, smooth_q) if smooth_q else np.asarray(Y, dtype=np.float64)
     inside = np.ones_like(t, dtype=bool) if search is None else (t >= search[0]) & (t <= search[1])
@@ -345,7 +394,7 @@ def _resolve_window(kind, t, Y, window, half_width, search, smooth_q, direction)
         if half_width is None:
             raise ValueError("window='auto' needs half_width")
         if kind == "vertex":
-            centre = _argmin_time(t, Y, search, smooth_q)
+            centre = argmin_time(t, Y, search, smooth_q)
         else:
             Ys = moving_average(Y, smooth_q) if smooth_q else Y
             centre = first_crossing(t, Ys, search, direction)
@@ -371,16 +420,26 @@ def _scalar_fit(
     unit,
     error_scale,
     n,
+    require_minimum=False,
 ):
     y = np.asarray(y, dtype=np.float64)
     if y.ndim != 1:
         raise ValueError("y must be (time,); use vertex_times/zero_crossing_times for batches")
     lo, hi, _ = _resolve_window(kind, t, y, window, half_width, search, smooth_q, direction)
     if not (np.isfinite(lo) and np.isfinite(hi)):
-        return FitResult(quantity, math.nan, math.nan, unit, n=n, method=f"{kind}: no window")
+        what = "no minimum in the search range" if kind == "vertex" else "no zero crossing"
+        return FitResult(quantity, math.nan, math.nan, unit, n=n, method=f"{kind}: no window",
+                         note=f"{what}: no window to fit")  # fmt: skip
     t_ref = 0.5 * (float(lo) + float(hi))
-    fn = vertex_times if kind == "vertex" else zero_crossing_times
-    value, err, ex = fn(t, y, (lo, hi), sigma, t_ref=t_ref, error_scale=error_scale)
+    note = ""
+    if kind == "vertex" and require_minimum:
+        value, err, _, _, reason, ex = minimum_times(
+            t, y, (lo, hi), sigma, t_ref=t_ref, error_scale=error_scale
+        )
+        note = MINIMUM_REASONS[int(reason)]
+    else:
+        fn = vertex_times if kind == "vertex" else zero_crossing_times
+        value, err, ex = fn(t, y, (lo, hi), sigma, t_ref=t_ref, error_scale=error_scale)
     return FitResult(
         quantity=quantity,
         value=float(value),
@@ -394,6 +453,7 @@ def _scalar_fit(
         chi2_red=float(ex["chi2_red"]),
         method=("quadratic fit, vertex" if kind == "vertex" else "linear fit, zero crossing")
         + (" (auto window)" if isinstance(window, str) else ""),
+        note=note,
     )
 
 
@@ -410,6 +470,7 @@ def vertex_time(
     unit: str = "s",
     error_scale: str = "auto",
     n: int | None = None,
+    require_minimum: bool = False,
 ) -> FitResult:
     """Avalanche onset: vertex of a quadratic fit to V(t) (drum paper, Sec. III).
 
@@ -425,6 +486,9 @@ def vertex_time(
         SEM of y; weights 1/σ² (see :func:`polyfit_window` for ``error_scale``).
     n : int, optional
         Replicas behind y, stored in the result.
+    require_minimum : bool
+        Accept the vertex only as a minimum inside the window (:func:`minimum_times`);
+        otherwise the value is NaN and ``note`` says why.
     """
     return _scalar_fit(
         "vertex",
@@ -440,6 +504,7 @@ def vertex_time(
         unit=unit,
         error_scale=error_scale,
         n=n,
+        require_minimum=require_minimum,
     )
 
 
@@ -634,133 +699,3 @@ def bootstrap_batches(
     return _bootstrap_core(
         statistic, sums, cnts, means[0].shape[0], n_resamples, level, seed, chunk
     )
-
-
-# ---------------------------------------------------------- drum: lag analysis
-def avalanche_lag(
-    t: np.ndarray,
-    speed: np.ndarray,
-    lyapunov: np.ndarray,
-    *,
-    state_window=(1.0, 4.0),
-    state_time: float | None = None,
-    sign_window=(10.0, 20.0),
-    batch_counts: np.ndarray | None = None,
-    weighted: bool = True,
-    half_width: float | None = None,
-    state_search: tuple[float, float] | None = None,
-    sign_search: tuple[float, float] | None = None,
-    smooth_q: int = 0,
-    direction: int = 0,
-    n_resamples: int = 1000,
-    level: float = 0.90,
-    seed: int | None = None,
-    unit: str = "s",
-    prefix: str = "",
-) -> dict[str, FitResult]:
-    """Change of state, sign change of λ and their lag, with a joint bootstrap.
-
-    Parameters
-    ----------
-    t : (T,) float [unit]
-    speed, lyapunov : (R, T) float
-        Per-replica V(t) [d_s/t0] and λ(t) [1/t0] (NaN-padded), or, with
-        ``batch_counts``, per-batch means (nb, T).
-    state_window : (t_lo, t_hi) or "auto"
-        Quadratic fit of V for the onset (paper: 1–4 s). Ignored if ``state_time``
-        is given (decay: the drum stops at exactly 5 s).
-    sign_window : (t_lo, t_hi) or "auto"
-        Linear fit of λ (paper: 10–20 s onset, 7–9 s decay).
-    batch_counts : (nb, T) int, optional
-        Switch to bootstrap over batch means.
-    weighted : bool
-        Weight the fits by the SEM of the ensemble mean. Bootstrap refits use
-        the full-sample weights (fixed design), so the interval reflects the
-        resampling of the mean only.
-    half_width, state_search, sign_search, smooth_q, direction
-        Automatic-window options (see :func:`vertex_time`, :func:`zero_crossing_time`);
-        in the bootstrap each resample re-centres its own window.
-    seed : int
-        Bootstrap seed.
-    prefix : str
-        Prepended to the quantity names (e.g. ``"onset_"`` → ``onset_sign_change_time``).
-
-    Returns
-    -------
-    dict with keys ``"change_time"`` (absent with ``state_time``),
-    ``"sign_change_time"``, ``"lag"``: :class:`FitResult`, each with fit error
-    and the percentile CI of the joint bootstrap (lag CI from the per-resample
-    difference, so the correlation of the two fits is respected).
-    """
-    V = np.asarray(speed, dtype=np.float64)
-    L = np.asarray(lyapunov, dtype=np.float64)
-    if batch_counts is None:
-        mV, sV, cV = replica_mean_sem(V)
-        mL, sL, cL = replica_mean_sem(L)
-        n = int(V.shape[0])
-    else:
-        mV, sV, cV = pooled_batch_mean(V, batch_counts)
-        mL, sL, cL = pooled_batch_mean(L, batch_counts)
-        n = int(np.max(cV))
-    wV = sV if weighted else None
-    wL = sL if weighted else None
-    auto = dict(half_width=half_width, smooth_q=smooth_q, unit=unit, n=n)
-    results: dict[str, FitResult] = {}
-    if state_time is None:
-        results["change_time"] = vertex_time(
-            t, mV, state_window, wV, search=state_search, quantity=prefix + "change_time", **auto
-        )
-        change: FitResult | float = results["change_time"]
-    else:
-        change = float(state_time)
-    results["sign_change_time"] = zero_crossing_time(
-        t,
-        mL,
-        sign_window,
-        wL,
-        search=sign_search,
-        direction=direction,
-        quantity=prefix + "sign_change_time",
-        **auto,
-    )
-    results["lag"] = lag(results["sign_change_time"], change, quantity=prefix + "lag")
-
-    # Fixed full-sample windows unless "auto" (then re-centred per resample).
-    def _win(kind, window, search, Y):
-        lo, hi, _ = _resolve_window(kind, t, Y, window, half_width, search, smooth_q, direction)
-        return (lo, hi)
-
-    def statistic(mv, ml):
-        z, _, _ = zero_crossing_times(
-            t,
-            ml,
-            _win("zero", sign_window, sign_search, ml),
-            wL,
-            t_ref=results["sign_change_time"].t_ref,
-        )
-        if state_time is None:
-            v, _, _ = vertex_times(
-                t,
-                mv,
-                _win("vertex", state_window, state_search, mv),
-                wV,
-                t_ref=results["change_time"].t_ref,
-            )
-        else:
-            v = np.full_like(z, float(state_time))
-        return np.stack([v, z, z - v], axis=-1)
-
-    if n_resamples > 0:
-        if batch_counts is None:
-            boot = bootstrap_replicas(
-                [V, L], statistic, n_resamples=n_resamples, level=level, seed=seed
-            )
-        else:
-            boot = bootstrap_batches(
-                [V, L], batch_counts, statistic, n_resamples=n_resamples, level=level, seed=seed
-            )
-        if state_time is None:
-            results["change_time"] = results["change_time"].with_ci(boot, 0)
-        results["sign_change_time"] = results["sign_change_time"].with_ci(boot, 1)
-        results["lag"] = results["lag"].with_ci(boot, 2)
-    return results

@@ -21,7 +21,7 @@ from __future__ import annotations
 import io
 import math
 import os
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +37,7 @@ __all__ = [
     "read_summary",
     "write_summary",
     "results_dataset",
+    "results_rows",
 ]
 
 COLUMNS = [
@@ -183,6 +184,8 @@ def results_dataset(results: Iterable) -> xr.Dataset:
             attrs["n_failed_resamples"] = int(r.n_failed)
         if r.window is not None:
             attrs["window"] = np.asarray(r.window, dtype=np.float64)
+        if getattr(r, "note", ""):
+            attrs["note"] = r.note
         ds[q] = ((), float(r.value), attrs)
         ds[f"{q}_fit_error"] = (
             (),
@@ -200,3 +203,33 @@ def results_dataset(results: Iterable) -> xr.Dataset:
             {"units": unit, "long_name": f"upper CI bound of {name}"},
         )
     return ds
+
+
+def results_rows(
+    ds: xr.Dataset, study: str, paper_value: Callable[[str], float | None] | None = None
+) -> list[dict]:
+    """The summary rows of a fits file written from :func:`results_dataset` (the inverse).
+
+    The quantities are those named, in order, by the file's ``quantities`` attribute;
+    ``paper_value(quantity)`` gives the paper's number for a row (``None``: none).
+    """
+    names = str(ds.attrs.get("quantities", "")).split()
+    if not names:
+        raise ValueError("the fits file lists no quantities (attribute 'quantities')")
+    rows = []
+    for q in names:
+        if q not in ds:
+            raise ValueError(f"the fits file lists {q} but does not hold it")
+        var = ds[q]
+        n = var.attrs.get("n")
+        rows.append(
+            summary_row(
+                study, q, float(var.values), var.attrs.get("units", ""),
+                fit_error=float(ds[f"{q}_fit_error"].values),
+                ci_low=float(ds[f"{q}_ci_low"].values),
+                ci_high=float(ds[f"{q}_ci_high"].values),
+                n=None if n is None else int(n),
+                paper_value=None if paper_value is None else paper_value(q),
+            )
+        )  # fmt: skip
+    return rows

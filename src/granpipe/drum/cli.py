@@ -38,7 +38,7 @@ def cli():
 )
 @click.option("--threads", type=int, default=1, show_default=True)
 def init_cmd(params, batch, out, threads):
-    """Random placement and settling of the replicas of one batch."""
+    """Random placement and start-up (fall, or settling) of the replicas of one batch."""
     from .stages import init_stage
 
     init_stage(params, batch, out, threads=_threads(threads))
@@ -75,34 +75,47 @@ def ensemble_cmd(params, out, runs):
 @click.option(
     "--ensemble", "ensemble_path", type=click.Path(exists=True, dir_okay=False), required=True
 )
-@click.option("--out", type=click.Path(dir_okay=False), required=True)
-@click.option("--summary", type=click.Path(dir_okay=False), required=True)
+@click.option("--out", type=click.Path(dir_okay=False), required=True, help="fits/<point>.nc")
 @click.argument("runs", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
-def fits_cmd(params, ensemble_path, out, summary, runs):
-    """Onset time, sign-change times and lags with fit errors and bootstrap CIs."""
+def fits_cmd(params, ensemble_path, out, runs):
+    """Onset time, sign-change times and lags of one point, with fit errors and CIs."""
     from .stages import fits_stage
 
-    fits_stage(params, ensemble_path, runs, out, summary)
+    fits_stage(params, ensemble_path, runs, out)
+
+
+@cli.command("summary")
+@click.option("--out", type=click.Path(dir_okay=False), required=True, help="summary.csv")
+@click.argument("fits", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
+def summary_cmd(out, fits):
+    """Gather the fitted numbers of every point into summary.csv."""
+    from .stages import summary_stage
+
+    summary_stage(fits, out)
 
 
 @cli.command("figures")
 @params_option
 @click.option(
-    "--ensemble", "ensemble_path", type=click.Path(exists=True, dir_okay=False), required=True
-)
-@click.option("--fits", "fits_path", type=click.Path(exists=True, dir_okay=False), required=True)
+    "--ensemble", "ensembles", type=click.Path(exists=True, dir_okay=False), multiple=True,
+    required=True, help="One per point, in the order of the params' points.",
+)  # fmt: skip
+@click.option(
+    "--fits", "fits", type=click.Path(exists=True, dir_okay=False), multiple=True,
+    required=True, help="One per point, in the same order.",
+)  # fmt: skip
 @click.option(
     "--snapshot",
     type=click.Path(exists=True, dir_okay=False),
     required=True,
-    help="A run file whose first replica holds snapshots.",
+    help="A run file of the reference point whose first replica holds snapshots.",
 )
 @click.option("--outdir", type=click.Path(file_okay=False), required=True)
-def figures_cmd(params, ensemble_path, fits_path, snapshot, outdir):
-    """Figs. 2-5 (PNG and PDF)."""
+def figures_cmd(params, ensembles, fits, snapshot, outdir):
+    """Figs. 2-5 (reference point) and 6-7 (across points), PNG and PDF."""
     from .stages import figures_stage
 
-    figures_stage(params, ensemble_path, fits_path, snapshot, outdir)
+    figures_stage(params, ensembles, fits, snapshot, outdir)
 
 
 @cli.command("replica")
@@ -123,21 +136,35 @@ def figures_cmd(params, ensemble_path, fits_path, snapshot, outdir):
     "else the schema defaults).",
 )
 @click.option(
+    "--point", default=None, help="Parameter point (folder name); default: the reference point."
+)
+@click.option(
     "--tiny", is_flag=True, help="A tiny drum (40 wall disks, 46 disks) with short windows."
 )
-def replica_cmd(replica, out, configfile, tiny):
-    """Run one replica (placement, settling, protocol) outside the workflow."""
+def replica_cmd(replica, out, configfile, point, tiny):
+    """Run one replica (placement, start-up, protocol) outside the workflow."""
     from ..config import load
+    from ..errors import ConfigError
     from ..io import write_dataset
+    from .layout import point_sections
     from .protocol import run_replica
     from .settings import filled, seed_physics, tiny_section
 
+    if replica < 0:
+        raise click.BadParameter(f"must be >= 0, got {replica}", param_hint="--seed")
+    folder = os.path.dirname(os.path.abspath(out))
+    if not (os.path.isdir(folder) and os.access(folder, os.W_OK)):
+        raise click.BadParameter(f"cannot write into {folder}", param_hint="--out")
     if configfile is None and os.path.exists("config/config.yaml"):
         configfile = "config/config.yaml"
     section = load(configfile)["drum"] if configfile else {}
     sec = filled(section)
     if tiny:
         sec = tiny_section(sec)
+    sections = point_sections(sec)
+    if point is not None and point not in sections:
+        raise ConfigError(f"--point {point!r} is not a point of this config: {list(sections)}")
+    sec = sections[point] if point is not None else next(iter(sections.values()))
     ds = run_replica(sec, replica, log=lambda m: click.echo(m, err=True))
     write_dataset(
         ds,

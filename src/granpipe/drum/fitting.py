@@ -27,7 +27,10 @@ choice), because our timing need not match the paper's.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import os
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -37,12 +40,13 @@ import xarray as xr
 from ..analysis.ensemble import EnsembleAccumulator
 from ..analysis.fits import (
     FitResult,
+    argmin_time,
     bootstrap_batches,
     bootstrap_replicas,
     first_crossing,
     lag,
+    minimum_times,
     vertex_time,
-    vertex_times,
     zero_crossing_time,
     zero_crossing_times,
 )
@@ -313,14 +317,6 @@ def smoothed_series(ens: xr.Dataset, fits_cfg: Mapping) -> xr.Dataset:
     return out
 
 
-def _argmin_smoothed(t, y, q, search):
-    ys = moving_average(y, q)
-    inside = (t >= search[0]) & (t <= search[1]) & np.isfinite(ys)
-    if not inside.any():
-        return np.nan
-    return float(t[inside][np.argmin(ys[inside])])
-
-
 def _fit_curve(t, res: FitResult, deg: int) -> np.ndarray:
     """The fitted polynomial on its window (NaN elsewhere), for the figures."""
     y = np.full_like(t, np.nan)
@@ -346,76 +342,163 @@ def _boot(units: Units, statistic, cfg):
     return bootstrap_batches([units.speed, units.lambda_], units.counts, statistic, **kw)
 
 
-def _window_analysis(
-    t, ens, w, units, cfg, q, *, vertex_window, zero_window, half_width, search, direction,
-    stop, suffix,
-):  # fmt: skip
-    """Change of state, sign change and lag of one window, with a joint bootstrap.
+def _onset_window(t, mV, q, cfg, auto: bool):
+    """The vertex-fit window of the onset: the configured one, or (auto) one of the same
+    width centred on the minimum of the smoothed V within ``fits.vertex_search_s``
+    (vectorised over resamples: ``mV`` (..., T) gives (lo, hi) arrays)."""
+    lo, hi = (float(x) for x in cfg["onset_vertex_window_s"])
+    if not auto:
+        return lo, hi
+    centre = argmin_time(t, mV, tuple(cfg["vertex_search_s"]), q)
+    hw = 0.5 * (hi - lo)
+    return np.maximum(float(t[0]), centre - hw), centre + hw
 
-    Central values: fits of the ensemble mean (weighted by its standard error if
-    ``fits.weighted``; the bootstrap then keeps those weights, a fixed design); a
-    ``zero_window`` of ``"auto"`` is re-centred in every resample on the first
-    crossing of its own λ̄ within ``search``.
+
+def _onset_analysis(t, ens, units, cfg, q, *, auto, suffix):
+    """Onset time (a V minimum), its curvature, the sign change and the lag of the onset
+    window, with a joint bootstrap in which every resample applies the same rules: its
+    own windows (auto mode), and a vertex that counts only as a minimum inside its window.
     """
-    mV, sV = ens[f"speed_{w}_mean"].values, ens[f"speed_{w}_sem"].values
-    mL, sL = ens[f"lambda_{w}_mean"].values, ens[f"lambda_{w}_sem"].values
+    mV = ens["speed_onset_mean"].values
+    mL, sL = ens["lambda_onset_mean"].values, ens["lambda_onset_sem"].values
+    sV = ens["speed_onset_sem"].values
     if not cfg.get("weighted", False):
-        # ordinary least squares, errors from the residuals (see fits.weighted)
-        sV = sL = None
+        sV = sL = None  # ordinary least squares, errors from the residuals
     n = int(ens.attrs["n_replicas"])
-    out: dict[str, FitResult] = {}
-    if vertex_window is not None:
-        vwin = vertex_window
-        if not np.all(np.isfinite(vwin)):
-            # no V minimum found: a NaN result without a window
-            vwin, hw_v, search_v = "auto", 0.0, (np.nan, np.nan)
-        else:
-            hw_v, search_v = None, None
-        out["change"] = vertex_time(
-            t, mV, vwin, sV, half_width=hw_v, search=search_v, quantity=f"{w}_time{suffix}", n=n
-        )
-        change: FitResult | float = out["change"]
-    else:
-        change = float(stop)
-    # "auto": centred on the first crossing of λ̄ within ``search`` (NaN result if none)
-    zwin = "auto" if zero_window == "auto" else tuple(zero_window)
-    out["sign"] = zero_crossing_time(
-        t, mL, zwin, sL, half_width=half_width, search=search, smooth_q=q,
-        direction=direction, quantity=f"{w}_sign_change_time{suffix}", n=n,
+    zcfg = tuple(cfg["onset_zero_window_s"])
+    half_width = 0.5 * (zcfg[1] - zcfg[0])
+    vwin = _onset_window(t, mV, q, cfg, auto)
+    vmin = float(argmin_time(t, mV, tuple(cfg["vertex_search_s"]), q))
+    search = (vmin if np.isfinite(vmin) else float(t[0]), float(t[-1]))
+    change = vertex_time(t, mV, vwin, sV, quantity=f"onset_time{suffix}", n=n,
+                         require_minimum=True)  # fmt: skip
+    if auto:
+        change = dataclasses.replace(change, method=change.method + " (auto window)")
+    curv = _curvature(change, suffix, n)
+    zwin = "auto" if auto else zcfg
+    sign = zero_crossing_time(
+        t, mL, zwin, sL, half_width=half_width, search=search, smooth_q=q, direction=+1,
+        quantity=f"onset_sign_change_time{suffix}", n=n,
     )  # fmt: skip
-    out["lag"] = lag(out["sign"], change, quantity=f"{w}_lag{suffix}")
-    z_ref = out["sign"].t_ref
+    lag_ = lag(sign, change, quantity=f"onset_lag{suffix}")
+    v_ref, z_ref = change.t_ref, sign.t_ref
 
     def statistic(mv, ml):
-        if zero_window == "auto":
-            c = first_crossing(t, moving_average(ml, q), search, direction)
+        lo, hi = _onset_window(t, mv, q, cfg, auto)
+        v, _, c2, _, _, _ = minimum_times(t, mv, (lo, hi), sV, t_ref=v_ref)
+        if auto:
+            start = argmin_time(t, mv, tuple(cfg["vertex_search_s"]), q)
+            start = np.where(np.isfinite(start), start, float(t[0]))
+            c = first_crossing(t, moving_average(ml, q), (start[:, None], float(t[-1])), +1)
             win = (c - half_width, c + half_width)
         else:
-            win = zwin
+            win = zcfg
         z, _, _ = zero_crossing_times(t, ml, win, sL, t_ref=z_ref)
-        if vertex_window is None:
-            v = np.full_like(z, float(stop))
-        else:
-            c = out["change"]
-            v, _, _ = vertex_times(t, mv, c.window, sV, t_ref=c.t_ref)
-        return np.stack([v, z, z - v], axis=-1)
+        return np.stack([v, c2, z, z - v], axis=-1)
 
-    fitted = np.isfinite(out["sign"].value) and (
-        vertex_window is None or np.isfinite(out["change"].value)
-    )
-    if fitted and int(cfg["bootstrap_resamples"]) > 0:
+    out = {"change": change, "curvature": curv, "sign": sign, "lag": lag_}
+    if int(cfg["bootstrap_resamples"]) > 0:
         boot = _boot(units, statistic, cfg)
-        if "change" in out:
-            out["change"] = out["change"].with_ci(boot, 0)
-        out["sign"] = out["sign"].with_ci(boot, 1)
-        out["lag"] = out["lag"].with_ci(boot, 2)
+        for col, key in enumerate(("change", "curvature", "sign", "lag")):
+            out[key] = out[key].with_ci(boot, col)
+        valid = 1.0 - boot.n_failed[0] / boot.n_resamples
+        out["valid"] = FitResult(
+            f"onset_valid_fraction{suffix}", float(valid), math.nan, "1",
+            n=boot.n_resamples,
+            method="fraction of bootstrap resamples whose vertex is a minimum inside its window",
+        )  # fmt: skip
     return out
+
+
+def _curvature(change: FitResult, suffix: str, n: int) -> FitResult:
+    """The fitted curvature c₂ of the onset parabola [(d_s/t0)/s²] with its fit error."""
+    c2 = err = math.nan
+    if change.coefficients is not None:
+        c2 = float(np.asarray(change.coefficients)[2])
+        err = float(np.sqrt(np.asarray(change.covariance)[2, 2]))
+    return FitResult(
+        f"onset_curvature{suffix}", c2, err, "(d_s/t0)/s^2", n=n, window=change.window,
+        method="curvature c2 of the quadratic fit of V (a minimum needs c2 > 0)",
+    )  # fmt: skip
+
+
+def _decay_analysis(t, ens, units, cfg, q, stop, *, auto, suffix):
+    """Sign change and lag of the decay window (the decay starts at the stop, exactly)."""
+    mL, sL = ens["lambda_decay_mean"].values, ens["lambda_decay_sem"].values
+    if not cfg.get("weighted", False):
+        sL = None
+    n = int(ens.attrs["n_replicas"])
+    zcfg = tuple(cfg["decay_zero_window_s"])
+    half_width = 0.5 * (zcfg[1] - zcfg[0])
+    search = (stop, float(t[-1]))
+    zwin = "auto" if auto else zcfg
+    sign = zero_crossing_time(
+        t, mL, zwin, sL, half_width=half_width, search=search, smooth_q=q, direction=-1,
+        quantity=f"decay_sign_change_time{suffix}", n=n,
+    )  # fmt: skip
+    lag_ = lag(sign, stop, quantity=f"decay_lag{suffix}")
+    z_ref = sign.t_ref
+
+    def statistic(mv, ml):
+        if auto:
+            c = first_crossing(t, moving_average(ml, q), search, -1)
+            win = (c - half_width, c + half_width)
+        else:
+            win = zcfg
+        z, _, _ = zero_crossing_times(t, ml, win, sL, t_ref=z_ref)
+        return np.stack([z, z - stop], axis=-1)
+
+    out = {"sign": sign, "lag": lag_}
+    if np.isfinite(sign.value) and int(cfg["bootstrap_resamples"]) > 0:
+        boot = _boot(units, statistic, cfg)
+        out["sign"] = sign.with_ci(boot, 0)
+        out["lag"] = lag_.with_ci(boot, 1)
+    return out
+
+
+def _startup_excess(t, ens, units, cfg, q) -> list[FitResult]:
+    """How far V still decays after t = 0: mean V over ``fits.startup_window_s`` minus
+    mean V over a window of the same width centred on the V minimum, with its bootstrap
+    standard error, and that difference in standard errors."""
+    mV = ens["speed_onset_mean"].values
+    lo, hi = (float(x) for x in cfg["startup_window_s"])
+    hw = 0.5 * (hi - lo)
+    search = tuple(cfg["vertex_search_s"])
+    n = int(ens.attrs["n_replicas"])
+
+    def excess(mv):
+        mv = np.atleast_2d(mv)
+        c = argmin_time(t, mv, search, q)[:, None]
+        early = np.where((t >= lo) & (t <= hi), mv, np.nan)
+        near = np.where(np.abs(t - c) <= hw, mv, np.nan)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return np.nanmean(early, axis=-1) - np.nanmean(near, axis=-1)
+
+    value = float(excess(mV)[0])
+    se = lo_ci = hi_ci = math.nan
+    n_res = 0
+    if int(cfg["bootstrap_resamples"]) > 1:
+        boot = _boot(units, lambda mv, ml: excess(mv), cfg)
+        se, lo_ci, hi_ci = float(boot.std[0]), float(boot.ci_low[0]), float(boot.ci_high[0])
+        n_res = boot.n_resamples
+    method = (
+        f"mean V on [{lo:g}, {hi:g}] s minus mean V within {hw:g} s of the V minimum; "
+        "error: bootstrap standard deviation"
+    )
+    return [
+        FitResult("onset_startup_excess", value, se, "d_s/t0", ci_low=lo_ci, ci_high=hi_ci,
+                  ci_level=float(cfg["confidence"]), n=n, n_resamples=n_res, method=method),
+        FitResult("onset_startup_excess_sigma", value / se if se > 0 else math.nan, math.nan,
+                  "1", n=n, method="onset_startup_excess in units of its standard error"),
+    ]  # fmt: skip
 
 
 def drum_fits(
     ens: xr.Dataset,
     units: Mapping[str, Units],
     fits_cfg: Mapping,
+    label: str = "",
 ) -> tuple[list[FitResult], xr.Dataset]:
     """All fitted times of the drum study, with fit errors and bootstrap intervals.
 
@@ -425,14 +508,18 @@ def drum_fits(
         fit abscissae, in seconds after the start of each recording).
     units : from :func:`load_units` (the same replicas as ``ens``).
     fits_cfg : the ``drum.fits`` section (filled).
+    label : str
+        Appended to every quantity name (a point's label, e.g. ``"[period=450s]"``).
 
     Returns
     -------
-    results : list of FitResult (unit "s"), named ``onset_time``,
-        ``onset_sign_change_time``, ``onset_lag``, ``decay_sign_change_time``,
-        ``decay_lag``, the same with suffix ``_auto`` (automatic windows),
-        and the zero crossings of λ̄ and of the low-pass
-        (``{w}_lambda_bar_zero_time``, ``{w}_lowpass_zero_time``).
+    results : list of FitResult, named ``onset_time`` (NaN, with a ``note``, unless the
+        vertex is a minimum inside its window), ``onset_curvature``,
+        ``onset_valid_fraction``, ``onset_sign_change_time``, ``onset_lag``,
+        ``decay_sign_change_time``, ``decay_lag``, the same with suffix ``_auto``
+        (automatic windows), the zero crossings of λ̄ and of the low-pass
+        (``{w}_lambda_bar_zero_time``, ``{w}_lowpass_zero_time``) and the start-up decay
+        (``onset_startup_excess``, ``onset_startup_excess_sigma``).
     curves : Dataset of λ̄, low-pass and the fitted segments (NaN off-window),
         on the ensemble's time axes, for the figures.
 
@@ -442,7 +529,9 @@ def drum_fits(
     squares with residual-based errors, or weighted by 1/SEM² with
     ``fits.weighted``), so they do not depend on the bootstrap unit; intervals from
     the joint percentile bootstrap of V and λ (the lag's interval from the
-    per-resample difference, keeping the correlation of the two fits).
+    per-resample difference, keeping the correlation of the two fits). A resample
+    whose vertex is not a minimum inside its window gives no onset (nor lag); the
+    fraction of resamples that did is ``onset_valid_fraction``.
     """
     cfg = dict(fits_cfg)
     curves = smoothed_series(ens, cfg)
@@ -453,45 +542,26 @@ def drum_fits(
     results: list[FitResult] = []
     modes = [("", False)] + ([("_auto", True)] if cfg["auto_windows"] else [])
     for suffix, auto in modes:
-        vwin = tuple(cfg["onset_vertex_window_s"])
-        zon = tuple(cfg["onset_zero_window_s"])
-        zde = tuple(cfg["decay_zero_window_s"])
-        vmin = _argmin_smoothed(
-            t_on, ens["speed_onset_mean"].values, q, tuple(cfg["vertex_search_s"])
-        )
-        if auto:
-            hw = 0.5 * (vwin[1] - vwin[0])
-            vwin = (max(float(t_on[0]), vmin - hw), vmin + hw)
-        on = _window_analysis(
-            t_on, ens, "onset", units["onset"], cfg, q,
-            vertex_window=vwin,
-            zero_window="auto" if auto else zon,
-            half_width=0.5 * (zon[1] - zon[0]),
-            search=(vmin if np.isfinite(vmin) else float(t_on[0]), float(t_on[-1])),
-            direction=+1, stop=None, suffix=suffix,
-        )  # fmt: skip
-        de = _window_analysis(
-            t_de, ens, "decay", units["decay"], cfg, q,
-            vertex_window=None,
-            zero_window="auto" if auto else zde,
-            half_width=0.5 * (zde[1] - zde[0]),
-            search=(stop, float(t_de[-1])),
-            direction=-1, stop=stop, suffix=suffix,
-        )  # fmt: skip
-        results += [on["change"], on["sign"], on["lag"], de["sign"], de["lag"]]
-        label = "auto" if auto else "config"
-        for name, tt, res, deg, ref in (
-            (f"fit_speed_onset_{label}", t_on, on["change"], 2, "speed_onset_mean"),
-            (f"fit_lambda_onset_{label}", t_on, on["sign"], 1, "lambda_onset_mean"),
-            (f"fit_lambda_decay_{label}", t_de, de["sign"], 1, "lambda_decay_mean"),
+        on = _onset_analysis(t_on, ens, units["onset"], cfg, q, auto=auto, suffix=suffix)
+        de = _decay_analysis(t_de, ens, units["decay"], cfg, q, stop, auto=auto, suffix=suffix)
+        results += [on[k] for k in ("change", "curvature", "valid", "sign", "lag") if k in on]
+        results += [de["sign"], de["lag"]]
+        name = "auto" if auto else "config"
+        for cname, tt, res, deg, ref in (
+            (f"fit_speed_onset_{name}", t_on, on["change"], 2, "speed_onset_mean"),
+            (f"fit_lambda_onset_{name}", t_on, on["sign"], 1, "lambda_onset_mean"),
+            (f"fit_lambda_decay_{name}", t_de, de["sign"], 1, "lambda_decay_mean"),
         ):
             kind = "quadratic fit of V" if deg == 2 else "linear fit of λ"
-            curves[name] = (
+            curves[cname] = (
                 ens[ref].dims[0],
                 _fit_curve(tt, res, deg),
-                {"units": ens[ref].attrs["units"], "long_name": f"{kind}, {label} window"},
+                {"units": ens[ref].attrs["units"], "long_name": f"{kind}, {name} window"},
             )
     results.extend(_crossings(ens, curves, units, q, stop, cfg))
+    results.extend(_startup_excess(t_on, ens, units["onset"], cfg, q))
+    if label:
+        results = [dataclasses.replace(r, quantity=r.quantity + label) for r in results]
     return results, curves
 
 
@@ -502,8 +572,8 @@ def _crossings(ens, curves, units, q, stop, cfg) -> list[FitResult]:
     for w, direction in (("onset", +1), ("decay", -1)):
         t = ens[f"seconds_{w}"].values
         if w == "onset":
-            vmin = _argmin_smoothed(
-                t, ens["speed_onset_mean"].values, q, tuple(cfg["vertex_search_s"])
+            vmin = float(
+                argmin_time(t, ens["speed_onset_mean"].values, tuple(cfg["vertex_search_s"]), q)
             )
             search = (vmin if np.isfinite(vmin) else 0.0, float(t[-1]))
         else:

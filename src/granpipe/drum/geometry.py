@@ -55,9 +55,10 @@ PAPER_PHYSICS: dict = {
     "g": 1.0,
     "t0_s": T0_SECONDS,
     "dt": 1.14368e-3,
-    "omega": 2.4417e-4,
+    "period_s": 900.0,
     "skin": 0.3,
     "min_contacts": 2,
+    "max_overlap": 1.0,
 }
 """The paper's model (Table 1, Sec. II.2) in reduced units: the default ``drum.physics``."""
 

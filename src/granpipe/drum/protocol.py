@@ -1,48 +1,57 @@
-"""One replica of the drum study, step by step (SPEC §1 "Protocol"; paper Sec. II.2-II.3).
+"""One replica of the drum study, step by step (paper Sec. II.2-II.3; docs/drum.md).
 
-1. **Placement** — the N mobile disks at random without overlap inside the drum
-   (:func:`granpipe.drum.placement.random_placement`), at rest.
-2. **Settling** (stage ``init``) — the disks fall under gravity with the drum at
-   rest, in chunks of ``protocol.chunk_s``, recording block means of V; after
-   every block, disk speeds above ``settle.max_speed`` are scaled down to it (a
-   free fall from the top of the drum would hit the pile at ~10 sqrt(g d_s), an
-   overlap of ~0.4 d_s at this k_n, which the engine rejects as a blow-up). The pile
-   is *settled* at the end of the first chunk, at least ``settle.min_time_s`` after
-   the start, such that every block mean of the rms speed per disk V/sqrt(N) in
-   the last ``settle.hold_s`` is below ``settle.speed_threshold``. A replica not
-   settled after ``settle.max_time_s`` is flagged (``settled = 0``) and, by
-   default, left out of the ensemble.
-3. **Tangent vector** — about ``protocol.tangent_fraction`` (10 %) of the 4N
-   components δx, δy, δv_x, δv_y of the mobile disks, each chosen independently
-   with that probability, get values uniform in [−1, 1] (Sec. II.3). It is set
-   when the rotation starts and evolves with the trajectory from then on (the 1°
-   of rotation before t = 0 doubles as its alignment time).
-4. **Rotation and onset window** — the drum turns clockwise at Ω; after
-   ``protocol.pre_rotation_deg`` (1° = 2.5 s) the clock reads t = 0 and the onset
-   window of ``protocol.onset_window_s`` is recorded: block means of λ(t) and V(t)
-   over ``protocol.block_s`` (4 ms = 100 steps).
-5. **Continuous avalanche** — the drum keeps turning. The avalanche *flows* at
-   the end of a chunk if the mean of V over the preceding
-   ``protocol.continuous_hold_s`` exceeds ``1 + protocol.continuous_excess`` times
-   the speed of rigid rotation with the drum, Ω sqrt(Σ r_i²) (at the paper's
-   slow Ω, V of a pile turning with the drum is ~0.17 sqrt(g d_s); the flowing
-   layer adds to it). The first such time after t = 0 is recorded
-   (``continuous_time``); the decay window starts at the first chunk boundary at
-   or after the end of the onset window at which the avalanche flows. If it does
+Two start-ups (``protocol.startup``), each its own parameter point:
+
+**paper** (default) — the paper's Sec. II.2: "The drum is ... set into rotation ... We
+place the N non-wall disks randomly inside the drum and allow them to fall to the
+bottom", and data are collected "after a brief equilibration period, corresponding to
+one degree of rotation".
+
+1. **Placement** (stage ``init``) — the N mobile disks at random without overlap over
+   the whole free disk of the drum (:func:`granpipe.drum.placement.random_placement`,
+   clearance ``protocol.placement_gap``), at rest, in a drum that is already turning.
+2. **Fall** (stage ``init``) — the disks fall and settle while the drum turns, with no
+   speed cap or extra damping, until ``protocol.tangent_alignment_s`` before t = 0.
+   Falling disks strike the pile at 8-9 d_s/t0 and overlap by up to ~0.6 of the smaller
+   radius; the bad-state bound ``physics.max_overlap`` (default 1: a centre reaching the
+   other disk's rim) is set above that (docs/drum.md, "Start-up").
+3. **Tangent vector** (stage ``runs``) — about ``protocol.tangent_fraction`` (10 %) of
+   the 4N components δx, δy, δv_x, δv_y, each chosen with that probability, get values
+   uniform in [−1, 1] (Sec. II.3); it evolves for ``tangent_alignment_s`` before t = 0,
+   which is reached exactly ``pre_rotation_deg`` (1° = 2.5 s) after the placement.
+
+**settled** — the earlier reading, kept for comparison: the disks fall and settle to
+rest in a *still* drum (disk speeds capped at ``settle.max_speed`` after every block;
+settled when every block mean of V/sqrt(N) over ``settle.hold_s`` is below
+``settle.speed_threshold``, at least ``settle.min_time_s`` after the placement; flagged
+``settled = 0`` if not after ``settle.max_time_s``); then the drum starts turning, the
+tangent vector is set, and t = 0 comes after ``pre_rotation_deg``.
+
+Then, for both:
+
+4. **Onset window** — ``protocol.onset_window_s`` recorded from t = 0: block means of
+   λ(t) and V(t) over ``protocol.block_s`` (4 ms = 100 steps).
+5. **Continuous avalanche** — the avalanche *flows* at the end of a chunk if the mean of
+   V over the preceding ``protocol.continuous_hold_s`` exceeds
+   ``1 + protocol.continuous_excess`` times the speed of rigid rotation with the drum,
+   Ω sqrt(Σ r_i²). The first such time after t = 0 is recorded (``continuous_time``).
+   If it flows at the end of the onset window, the decay window starts there and the
+   tangent vector simply goes on. Otherwise the drum keeps turning with the tangent
+   vector switched off (forward dynamics only) until it flows, then a fresh tangent
+   vector evolves for ``tangent_alignment_s`` and the decay window starts. If it does
    not flow by ``protocol.max_rotation_s`` after t = 0, the replica is flagged
-   (``continuous = 0``), its decay window is recorded anyway from there, and by
-   default it is left out of the ensemble.
-6. **Decay window** — ``protocol.decay_window_s`` recorded from a fresh t = 0:
-   the drum still turns for ``protocol.decay_rotating_s`` (5 s), then stops
-   abruptly (wall velocities zero from that step on).
+   (``continuous = 0``), its decay window is recorded anyway, and by default it is left
+   out of the ensemble.
+6. **Decay window** — ``protocol.decay_window_s`` recorded from a fresh t = 0: the drum
+   still turns for ``protocol.decay_rotating_s`` (5 s), then stops abruptly (wall
+   velocities zero from that step on).
 
-A replica's random stream is ``replica_rng("drum", physics, replica)`` with
-``physics`` = the ``physics``, ``settle`` and ``protocol`` sub-sections
-(:func:`granpipe.drum.settings.seed_physics`); its first spawned child places the
-disks, the second draws the tangent vector. Every replica runs on its own engine
-state, so its output depends on nothing else: not the batch, its size, the thread
-count or the order. Replicas of a batch run side by side in threads (the engine's
-kernels release the GIL).
+A replica's random stream is ``replica_rng("drum", physics, replica)`` with ``physics``
+the point's seeding subset (:func:`granpipe.drum.settings.seed_physics`); its first
+spawned child places the disks, the second draws the tangent vectors. Every replica
+runs on its own engine state, so its output depends on nothing else: not the batch, its
+size, the thread count or the order. Replicas of a batch run side by side in threads
+(the engine's kernels release the GIL).
 """
 
 from __future__ import annotations
@@ -64,16 +73,18 @@ from . import geometry
 from .layout import point_name
 from .placement import random_placement
 from .records import ReplicaRecord, Snapshot, batch_dataset
-from .settings import Steps, filled, seed_physics, steps
+from .settings import Steps, filled, omega, seed_physics, steps
 
 __all__ = [
     "DrumModel",
     "Progress",
-    "Settled",
+    "Start",
     "initial_tangent",
     "settle",
+    "fall",
+    "prepare",
     "run_protocol",
-    "settle_batch",
+    "init_batch",
     "run_batch",
     "run_replica",
     "replica_streams",
@@ -114,6 +125,11 @@ class DrumModel:
         d = geometry.diameters(ph)
         return cls(ph, geom, d, geometry.masses(ph), len(d), geometry.wall_positions(geom))
 
+    @property
+    def omega(self) -> float:
+        """Angular speed of the drum's clockwise rotation [rad/t0]."""
+        return omega(self.physics)
+
     def simulation(self, omega_clockwise: float) -> Simulation:
         """The engine with the drum turning clockwise at ``omega_clockwise`` [rad/t0]."""
         ph = self.physics
@@ -122,13 +138,16 @@ class DrumModel:
         walls = WallDisks(centre=(0.0, 0.0), omega=-float(omega_clockwise))
         return Simulation(
             law, float(ph["dt"]), gravity=(0.0, -float(ph["g"])), wall_disks=walls,
-            skin=float(ph["skin"]), parallel=False,
+            skin=float(ph["skin"]), parallel=False, max_overlap=float(ph["max_overlap"]),
         )  # fmt: skip
 
-    def new_state(self, sim: Simulation, positions, velocities, t: float = 0.0):
-        """An engine state: mobile disks (N, 2) then the wall disks at angle 0."""
+    def new_state(self, sim: Simulation, positions, velocities, t: float = 0.0,
+                  wall_angle: float = 0.0):  # fmt: skip
+        """An engine state: mobile disks (N, 2) then the wall disks, the drum turned
+        clockwise by ``wall_angle`` [rad] from its position at placement."""
         n_w = self.geom.n_wall
-        pos = np.concatenate([np.asarray(positions, np.float64), self.walls0])
+        walls = geometry.wall_positions(self.geom, wall_angle) if wall_angle else self.walls0
+        pos = np.concatenate([np.asarray(positions, np.float64), walls])
         vel = np.concatenate([np.asarray(velocities, np.float64), np.zeros((n_w, 2))])
         radii = np.concatenate([self.diameters, np.full(n_w, self.geom.d_wall)]) / 2.0
         masses = np.concatenate([self.masses, np.ones(n_w)])
@@ -208,30 +227,85 @@ class Progress:
         self.log(f"{self.what} {k + 1} of {self.n} done: {msg}")
 
 
-# --------------------------------------------------------------------------- settling
+# --------------------------------------------------------------------------- start-ups
 @dataclass
-class Settled:
-    """A settled pile: (N, 2) positions [d_s] and velocities [d_s/t0] of the mobile disks."""
+class Start:
+    """Where the stage ``runs`` starts a replica (the content of the init file).
+
+    Attributes
+    ----------
+    positions, velocities : (N, 2) float64 [d_s], [d_s/t0] of the mobile disks
+    wall_angle : float [rad]
+        Clockwise angle the drum has turned since the placement (0 for the settled
+        start-up, whose drum starts turning here).
+    settled : bool
+        The settling criterion was met (always true for the paper start-up, which has
+        none).
+    settle_time : float [s]
+        Duration of the fall (and settling) before this state.
+    n_steps : int; wall_time : float [s]
+        Cost of preparing it.
+    """
 
     positions: np.ndarray
     velocities: np.ndarray
+    wall_angle: float
     settled: bool
     settle_time: float
     n_steps: int
     wall_time: float
 
 
+def _placement(model: DrumModel, protocol: Mapping, rng) -> np.ndarray:
+    gap = float(protocol["placement_gap"])
+    return random_placement(model.diameters, model.geom.inner_radius, rng, gap=gap)
+
+
+def fall(
+    model: DrumModel,
+    st: Steps,
+    positions: np.ndarray,
+    *,
+    on_chunk: Callable[[int, float], None] | None = None,
+) -> Start:
+    """The paper start-up: disks at rest at ``positions`` fall while the drum turns.
+
+    Runs ``st.pre_rotation − st.alignment`` steps (forward dynamics only, no cap), so that
+    the stage ``runs`` reaches t = 0 exactly ``pre_rotation_deg`` after the placement.
+    """
+    t_wall = time.perf_counter()
+    sim = model.simulation(model.omega)
+    state = model.new_state(sim, positions, np.zeros_like(positions))
+    n_fall = st.pre_rotation - st.alignment
+    done = 0
+    while done < n_fall:
+        n = min(st.chunk, n_fall - done)
+        sim.run(state, n)
+        done += n
+        if on_chunk is not None:
+            on_chunk(done, (done - st.pre_rotation) * st.dt_s)
+    return Start(
+        positions=state.positions[: model.n_mobile].copy(),
+        velocities=state.velocities[: model.n_mobile].copy(),
+        wall_angle=model.omega * n_fall * st.dt,
+        settled=True,
+        settle_time=n_fall * st.dt_s,
+        n_steps=n_fall,
+        wall_time=time.perf_counter() - t_wall,
+    )
+
+
 def settle(
     model: DrumModel,
     st: Steps,
     settle_cfg: Mapping,
-    rng: np.random.Generator,
+    positions: np.ndarray,
     *,
     on_chunk: Callable[[int, float], None] | None = None,
-) -> Settled:
-    """Place the disks at random and let them fall and settle with the drum at rest."""
+) -> Start:
+    """The settled start-up: disks at ``positions`` fall and settle with the drum at rest."""
     t_wall = time.perf_counter()
-    pos = random_placement(model.diameters, model.geom.inner_radius, rng, gap=settle_cfg["gap"])
+    pos = np.asarray(positions, np.float64)
     sim = model.simulation(0.0)
     state = model.new_state(sim, pos, np.zeros_like(pos))
     threshold = float(settle_cfg["speed_threshold"])
@@ -245,8 +319,8 @@ def settle(
         for _ in range(n // st.block):
             rec = sim.run(state, st.block, stride=st.block)
             history.append(model.rms_speed(rec.global_speed))
-            # Free fall from the top of the drum would hit the pile at ~10 sqrt(g d_s),
-            # an overlap of ~0.4 d_s with k_n = 566: cap the speeds instead.
+            # Free fall from the top of the drum would hit the pile at ~10 sqrt(g d_s):
+            # this start-up caps the speeds instead.
             vel = state.velocities[:n_mob]
             speed = np.hypot(vel[:, 0], vel[:, 1])
             fast = speed > vmax
@@ -261,14 +335,24 @@ def settle(
             if len(tail) >= st.settle_hold and np.all(tail < threshold):
                 settled = True
                 break
-    return Settled(
+    return Start(
         positions=state.positions[: model.n_mobile].copy(),
         velocities=state.velocities[: model.n_mobile].copy(),
+        wall_angle=0.0,
         settled=settled,
         settle_time=done * st.dt_s,
         n_steps=done,
         wall_time=time.perf_counter() - t_wall,
     )
+
+
+def prepare(model: DrumModel, section: Mapping, st: Steps, rng, *, on_chunk=None) -> Start:
+    """Placement and the section's start-up (stage ``init``) from the placement stream."""
+    sec = filled(section)
+    pos = _placement(model, sec["protocol"], rng)
+    if sec["protocol"]["startup"] == "settled":
+        return settle(model, st, sec["settle"], pos, on_chunk=on_chunk)
+    return fall(model, st, pos, on_chunk=on_chunk)
 
 
 # --------------------------------------------------------------------------- protocol
@@ -286,7 +370,7 @@ def run_protocol(
     model: DrumModel,
     st: Steps,
     protocol: Mapping,
-    start: Settled,
+    start: Start,
     tangent_rng: np.random.Generator,
     *,
     replica: int = 0,
@@ -294,35 +378,44 @@ def run_protocol(
     snapshots: bool = False,
     on_chunk: Callable[[int, float, str], None] | None = None,
 ) -> ReplicaRecord:
-    """Steps 3-6 of the module docstring from a settled pile; one onset-decay pair.
+    """Steps 3-6 of the module docstring from a prepared start; one onset-decay pair.
 
     Returns a :class:`~granpipe.drum.records.ReplicaRecord` (λ in 1/t0, V in d_s/t0,
     times in s); ``settled``/``settle_time`` are copied from ``start``.
     """
     t_wall = time.perf_counter()
-    omega = float(model.physics["omega"])
-    sim = model.simulation(omega)
-    state = model.new_state(sim, start.positions, start.velocities, t=-st.pre_rotation * st.dt)
-    dr, dv = initial_tangent(model.n_mobile, tangent_rng, float(protocol["tangent_fraction"]))
+    om = model.omega
+    sim = model.simulation(om)
+    state = model.new_state(sim, start.positions, start.velocities, t=-st.alignment * st.dt,
+                            wall_angle=start.wall_angle)  # fmt: skip
     n_w = model.geom.n_wall
-    sim.set_tangent(state, np.concatenate([dr, np.zeros((n_w, 2))]),
-                    np.concatenate([dv, np.zeros((n_w, 2))]))  # fmt: skip
+    fraction = float(protocol["tangent_fraction"])
+
+    def new_tangent():
+        dr, dv = initial_tangent(model.n_mobile, tangent_rng, fraction)
+        sim.set_tangent(state, np.concatenate([dr, np.zeros((n_w, 2))]),
+                        np.concatenate([dv, np.zeros((n_w, 2))]))  # fmt: skip
+
     total = 0
 
-    def advance(sim_, n_steps, stride, phase, t_origin_s):
+    def advance(sim_, n_steps, stride, phase, t_origin_s, tangent=True):
         nonlocal total
-        rec = sim_.run(state, n_steps, stride=stride, tangent=True)
+        rec = sim_.run(state, n_steps, stride=stride, tangent=tangent)
         total += n_steps
         if on_chunk is not None:
             on_chunk(total, t_origin_s, phase)
         return rec
 
-    # 4. one degree of rotation, then t = 0
-    done = 0
-    while done < st.pre_rotation:
-        n = min(st.chunk, st.pre_rotation - done)
-        advance(sim, n, 0, "rotation before t = 0", (done + n - st.pre_rotation) * st.dt_s)
-        done += n
+    def align(n_steps, phase, t_end_s):
+        done = 0
+        while done < n_steps:
+            n = min(st.chunk, n_steps - done)
+            advance(sim, n, 0, phase, t_end_s - (n_steps - done - n) * st.dt_s)
+            done += n
+
+    # 3. the tangent vector aligns over the last stretch before t = 0
+    new_tangent()
+    align(st.alignment, "rotation before t = 0", 0.0)
     snaps = [_snapshot(model, state, "t=0", "before the onset (onset window, t = 0)")] \
         if snapshots else []  # fmt: skip
 
@@ -337,7 +430,7 @@ def run_protocol(
         v = np.concatenate(speeds)
         if len(v) < hold:
             return False
-        return bool(np.mean(v[-hold:]) > (1.0 + excess) * model.rigid_speed(state, omega))
+        return bool(np.mean(v[-hold:]) > (1.0 + excess) * model.rigid_speed(state, om))
 
     done = 0
     while done < st.onset:
@@ -349,17 +442,23 @@ def run_protocol(
         done += n
         if t_cont is None and flowing():
             t_cont = done * st.dt_s
-    # 5. keep turning (recording V only to watch the criterion) until it flows at a
-    # chunk boundary after the onset window
+    # 5. not flowing yet: keep turning without the tangent vector (V only, to watch the
+    # criterion) until it flows, then align a fresh tangent vector before the decay window
     is_flowing = flowing()
+    waited = False
     while not is_flowing and done < st.max_rotation:
         rec = advance(sim, st.chunk, st.block, "waiting for a continuous avalanche",
-                      (done + st.chunk) * st.dt_s)  # fmt: skip
+                      (done + st.chunk) * st.dt_s, tangent=False)  # fmt: skip
         speeds.append(rec.global_speed)
         done += st.chunk
+        waited = True
         is_flowing = flowing()
         if t_cont is None and is_flowing:
             t_cont = done * st.dt_s
+    if waited:
+        new_tangent()
+        align(st.realign, "aligning the tangent vector", (done + st.realign) * st.dt_s)
+        done += st.realign
     continuous = bool(is_flowing)
     continuous_time = t_cont if t_cont is not None else math.nan
     decay_start = done * st.dt_s
@@ -418,19 +517,24 @@ def _with_context(exc: SimulationError, section, replica, seed, stage):
     )
 
 
-def _init_dataset(model: DrumModel, replicas, seeds, piles: list[Settled]) -> xr.Dataset:
+def _init_dataset(model: DrumModel, replicas, seeds, starts: list[Start]) -> xr.Dataset:
     r = ("replica",)
     return xr.Dataset(
         {
             "position": (
                 ("replica", "particle", "xy"),
-                np.stack([p.positions for p in piles]),
-                {"units": "d_s", "long_name": "settled mobile-disk centre"},
+                np.stack([p.positions for p in starts]),
+                {"units": "d_s", "long_name": "mobile-disk centre at the end of the start-up"},
             ),
             "velocity": (
                 ("replica", "particle", "xy"),
-                np.stack([p.velocities for p in piles]),
-                {"units": "d_s/t0", "long_name": "mobile-disk velocity at the end of settling"},
+                np.stack([p.velocities for p in starts]),
+                {"units": "d_s/t0", "long_name": "mobile-disk velocity at the end of the start-up"},
+            ),
+            "wall_angle": (
+                r,
+                np.array([p.wall_angle for p in starts]),
+                {"units": "rad", "long_name": "clockwise angle the drum turned since placement"},
             ),
             "seed": (
                 r,
@@ -439,23 +543,23 @@ def _init_dataset(model: DrumModel, replicas, seeds, piles: list[Settled]) -> xr
             ),
             "settled": (
                 r,
-                np.array([p.settled for p in piles], np.int8),
-                {"units": "1", "long_name": "1 if the settling criterion was met"},
+                np.array([p.settled for p in starts], np.int8),
+                {"units": "1", "long_name": "1 if the settling criterion was met (paper: 1)"},
             ),
             "settle_time": (
                 r,
-                np.array([p.settle_time for p in piles]),
-                {"units": "s", "long_name": "duration of the fall and settling"},
+                np.array([p.settle_time for p in starts]),
+                {"units": "s", "long_name": "duration of the fall (and settling)"},
             ),
             "n_steps": (
                 r,
-                np.array([p.n_steps for p in piles], np.int64),
-                {"units": "1", "long_name": "settling steps"},
+                np.array([p.n_steps for p in starts], np.int64),
+                {"units": "1", "long_name": "steps of the start-up"},
             ),
             "wall_time": (
                 r,
-                np.array([p.wall_time for p in piles]),
-                {"units": "s", "long_name": "wall-clock cost of placement and settling"},
+                np.array([p.wall_time for p in starts]),
+                {"units": "s", "long_name": "wall-clock cost of placement and start-up"},
             ),
             "diameter": (
                 "particle",
@@ -465,7 +569,7 @@ def _init_dataset(model: DrumModel, replicas, seeds, piles: list[Settled]) -> xr
             "wall_position": (
                 ("wall", "xy"),
                 model.walls0,
-                {"units": "d_s", "long_name": "wall-disk centre (drum at rest)"},
+                {"units": "d_s", "long_name": "wall-disk centre at the placement"},
             ),
         },  # fmt: skip
         coords={
@@ -483,48 +587,68 @@ def _init_dataset(model: DrumModel, replicas, seeds, piles: list[Settled]) -> xr
     )
 
 
-def settle_batch(section: Mapping, batch: int, *, threads: int = 1, log: Log = _quiet):
-    """Placement and settling of every replica of ``batch`` (the init file's Dataset)."""
+def init_batch(section: Mapping, batch: int, *, threads: int = 1, log: Log = _quiet):
+    """Placement and start-up of every replica of ``batch`` (the init file's Dataset)."""
     sec = filled(section)
     st = steps(sec)
     physics = seed_physics(sec)
     model = DrumModel.from_section(sec)
     replicas = list(batch_replicas(int(batch), int(sec["ensemble"]["batch_size"])))
-    progress = Progress(len(replicas), st.settle_max, log, what="settling replica")
+    startup = sec["protocol"]["startup"]
+    expected = st.settle_max if startup == "settled" else st.pre_rotation - st.alignment
+    progress = Progress(len(replicas), expected, log, what="start-up of replica")
     log(
-        f"init batch {batch}: replicas {replicas[0]}..{replicas[-1]}, N = {model.n_mobile}, "
-        f"drum radius {model.geom.radius:.3f} d_s, {threads} thread(s)"
+        f"init batch {batch} ({point_name(sec)}): replicas {replicas[0]}..{replicas[-1]}, "
+        f"N = {model.n_mobile}, drum radius {model.geom.radius:.3f} d_s, {startup} start-up, "
+        f"{threads} thread(s)"
     )
 
     def one(item):
         k, replica = item
         place_rng, _, seed = replica_streams(sec, replica, physics)
         try:
-            pile = settle(
-                model, st, sec["settle"], place_rng,
-                on_chunk=lambda n, t: progress.update(k, n, t, "settling"),
-            )  # fmt: skip
+            start = prepare(model, sec, st, place_rng,
+                            on_chunk=lambda n, t: progress.update(k, n, t, startup))  # fmt: skip
         except SimulationError as exc:
             raise _with_context(exc, sec, replica, seed, "init") from exc
-        ns = pile.wall_time / max(1, pile.n_steps * model.n_mobile) * 1e9
+        ns = start.wall_time / max(1, start.n_steps * model.n_mobile) * 1e9
+        what = "fell for" if startup == "paper" else (
+            "settled after" if start.settled else "NOT settled after")  # fmt: skip
         progress.finish(
             k,
-            f"{'settled' if pile.settled else 'NOT settled'} after {pile.settle_time:.2f} s "
-            f"({pile.wall_time:.1f} s wall, {ns:.0f} ns per particle-step)",
+            f"{what} {start.settle_time:.2f} s ({start.wall_time:.1f} s wall, "
+            f"{ns:.0f} ns per particle-step)",
         )
-        return seed, pile
+        return seed, start
 
     out = _map(one, list(enumerate(replicas)), threads)
     return _init_dataset(model, replicas, [s for s, _ in out], [p for _, p in out])
 
 
 def _expected_steps(st: Steps) -> int:
-    return st.pre_rotation + st.onset + st.decay
+    return st.alignment + st.onset + st.decay
+
+
+def _start_of(init: xr.Dataset, k: int) -> Start:
+    return Start(
+        positions=init["position"].values[k],
+        velocities=init["velocity"].values[k],
+        wall_angle=float(init["wall_angle"].values[k]),
+        settled=bool(init["settled"].values[k]),
+        settle_time=float(init["settle_time"].values[k]),
+        n_steps=int(init["n_steps"].values[k]),
+        wall_time=float(init["wall_time"].values[k]),
+    )
+
+
+def _cost_line(rec, model) -> str:
+    ns = rec.wall_time / max(1, rec.n_steps * model.n_mobile) * 1e9
+    return f"{rec.wall_time:.1f} s wall, {ns:.0f} ns per mobile particle-step"
 
 
 def run_batch(section: Mapping, batch: int, init: xr.Dataset, *, threads: int = 1,
               log: Log = _quiet) -> xr.Dataset:  # fmt: skip
-    """The protocol for every replica of ``batch`` from its settled pile (the run file)."""
+    """The protocol for every replica of ``batch`` from its start (the run file)."""
     sec = filled(section)
     st = steps(sec)
     physics = seed_physics(sec)
@@ -537,7 +661,7 @@ def run_batch(section: Mapping, batch: int, init: xr.Dataset, *, threads: int = 
         )
     progress = Progress(len(replicas), _expected_steps(st), log)
     log(
-        f"runs batch {batch}: replicas {replicas[0]}..{replicas[-1]}, "
+        f"runs batch {batch} ({point_name(sec)}): replicas {replicas[0]}..{replicas[-1]}, "
         f"{_expected_steps(st)} steps each at least, {threads} thread(s)"
     )
 
@@ -546,14 +670,7 @@ def run_batch(section: Mapping, batch: int, init: xr.Dataset, *, threads: int = 
         _, tangent_rng, seed = replica_streams(sec, replica, physics)
         if int(init["seed"].values[k]) != seed:
             raise ValueError(f"replica {replica}: init file seed differs (other physics?)")
-        start = Settled(
-            positions=init["position"].values[k],
-            velocities=init["velocity"].values[k],
-            settled=bool(init["settled"].values[k]),
-            settle_time=float(init["settle_time"].values[k]),
-            n_steps=int(init["n_steps"].values[k]),
-            wall_time=float(init["wall_time"].values[k]),
-        )
+        start = _start_of(init, k)
         try:
             rec = run_protocol(
                 model, st, sec["protocol"], start, tangent_rng, replica=replica, seed=seed,
@@ -562,13 +679,12 @@ def run_batch(section: Mapping, batch: int, init: xr.Dataset, *, threads: int = 
             )  # fmt: skip
         except SimulationError as exc:
             raise _with_context(exc, sec, replica, seed, "runs") from exc
-        ns = rec.wall_time / max(1, rec.n_steps * model.n_mobile) * 1e9
         progress.finish(
             k,
             f"continuous avalanche at {rec.continuous_time:.2f} s, decay from "
-            f"{rec.decay_start:.2f} s; {rec.wall_time:.1f} s wall, {ns:.0f} ns per particle-step",
+            f"{rec.decay_start:.2f} s; {_cost_line(rec, model)}",
         )
-        # the replica's total cost includes its settling
+        # the replica's total cost includes its start-up
         rec.wall_time += start.wall_time
         rec.n_steps += start.n_steps
         return rec
@@ -579,31 +695,31 @@ def run_batch(section: Mapping, batch: int, init: xr.Dataset, *, threads: int = 
 
 def run_replica(section: Mapping, replica: int, *, log: Log = _quiet,
                 snapshots: bool = True) -> xr.Dataset:  # fmt: skip
-    """One replica by hand: placement, settling and protocol (a one-replica run file).
+    """One replica by hand: placement, start-up and protocol (a one-replica run file).
 
-    The same numbers as replica ``replica`` of the workflow with this section.
+    The same numbers as replica ``replica`` of the workflow with this (point's) section.
     """
     sec = filled(section)
     st = steps(sec)
     model = DrumModel.from_section(sec)
     place_rng, tangent_rng, seed = replica_streams(sec, replica)
-    progress = Progress(1, st.settle_min + _expected_steps(st), log)
+    progress = Progress(1, st.pre_rotation + _expected_steps(st), log)
     try:
-        pile = settle(model, st, sec["settle"], place_rng,
-                      on_chunk=lambda n, t: progress.update(0, n, t, "settling"))  # fmt: skip
+        start = prepare(model, sec, st, place_rng,
+                        on_chunk=lambda n, t: progress.update(0, n, t, "start-up"))  # fmt: skip
+        # the stage runs starts from what the init file holds: the same arrays here
         rec = run_protocol(
-            model, st, sec["protocol"], pile, tangent_rng, replica=replica, seed=seed,
+            model, st, sec["protocol"], start, tangent_rng, replica=replica, seed=seed,
             snapshots=snapshots,
-            on_chunk=lambda n, t, ph: progress.update(0, pile.n_steps + n, t, ph),
+            on_chunk=lambda n, t, ph: progress.update(0, start.n_steps + n, t, ph),
         )  # fmt: skip
     except SimulationError as exc:
         raise _with_context(exc, sec, replica, seed, "replica") from exc
-    rec.wall_time += pile.wall_time
-    rec.n_steps += pile.n_steps
-    ns = rec.wall_time / max(1, rec.n_steps * model.n_mobile) * 1e9
+    rec.wall_time += start.wall_time
+    rec.n_steps += start.n_steps
     log(
-        f"replica {replica} (seed {seed}): settled={pile.settled} after {pile.settle_time:.2f} s, "
-        f"continuous at {rec.continuous_time:.2f} s; {rec.n_steps} steps in {rec.wall_time:.1f} s "
-        f"({ns:.0f} ns per particle-step)"
+        f"replica {replica} (seed {seed}): start-up {start.settle_time:.2f} s "
+        f"(settled={start.settled}), continuous at {rec.continuous_time:.2f} s; "
+        f"{rec.n_steps} steps, {_cost_line(rec, model)}"
     )
     return batch_dataset([rec], st, model.diameters, model.geom.d_wall)

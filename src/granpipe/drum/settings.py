@@ -9,9 +9,12 @@ quotes them, and are converted here to whole numbers of steps of Δt.
 from __future__ import annotations
 
 import copy
+import functools
+import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 
 import yaml
 
@@ -20,7 +23,12 @@ from ..errors import ConfigError
 
 __all__ = [
     "PHYSICS_KEYS",
+    "POINT_KEYS",
     "filled",
+    "omega",
+    "points",
+    "reference_point",
+    "point_label",
     "seed_physics",
     "Steps",
     "steps",
@@ -29,8 +37,15 @@ __all__ = [
 ]
 
 PHYSICS_KEYS = ("physics", "settle", "protocol")
-"""Sub-sections that change a replica's trajectory: the seeding subset (with n_replicas
-and batch_size excluded, so that a larger ensemble reuses every batch)."""
+"""Sub-sections that change a replica's trajectory (the settle section only for the
+``settled`` start-up): with n_replicas and batch_size excluded, so that a larger ensemble
+reuses every batch."""
+
+POINT_KEYS = (("physics", "period_s"), ("protocol", "startup"))
+"""Keys that may hold a list: each entry makes its own parameter point (``drum.design``)."""
+
+_NOT_SEEDED = (("physics", "max_overlap"),)
+"""Keys that never change a trajectory (a bad-state bound), left out of the seed."""
 
 
 def _fill_defaults(instance, schema, root):
@@ -52,11 +67,21 @@ def _fill_defaults(instance, schema, root):
     return instance
 
 
+@functools.lru_cache(maxsize=4)
+def _schema(path: str, mtime: int):
+    """The drum schema and its validator, read once per file version."""
+    import jsonschema
+
+    schema = yaml.safe_load(Path(path).read_text())
+    return schema, jsonschema.Draft202012Validator(schema)
+
+
 def filled(section: Mapping | None) -> dict:
     """A deep copy of a ``drum`` section with every schema default filled in, checked.
 
     The workflow's top-level validation does not fill defaults through the
-    ``$ref`` to ``drum.schema.yaml``, so library code always goes through this.
+    ``$ref`` to ``drum.schema.yaml``, so library code always goes through this (the
+    schema is read once per process and file version).
 
     Raises
     ------
@@ -64,14 +89,10 @@ def filled(section: Mapping | None) -> dict:
         naming the key, if the section violates the schema or a fit window is not
         ordered.
     """
-    import jsonschema
-
-    schema = yaml.safe_load((schema_dir() / "drum.schema.yaml").read_text())
+    path = schema_dir() / "drum.schema.yaml"
+    schema, validator = _schema(str(path), path.stat().st_mtime_ns)
     sec = _fill_defaults(copy.deepcopy(dict(section or {})), schema, schema)
-    errors = sorted(
-        jsonschema.Draft202012Validator(schema).iter_errors(sec),
-        key=lambda e: list(map(str, e.absolute_path)),
-    )
+    errors = sorted(validator.iter_errors(sec), key=lambda e: list(map(str, e.absolute_path)))
     if errors:
         msgs = ["drum." + ".".join(map(str, e.absolute_path)) + f": {e.message}" for e in errors]
         raise ConfigError("invalid drum configuration:\n  - " + "\n  - ".join(msgs))
@@ -86,14 +107,86 @@ def filled(section: Mapping | None) -> dict:
     return sec
 
 
+def omega(physics: Mapping) -> float:
+    """Angular speed of the drum's clockwise rotation [rad/t0], 2π t0 / period.
+
+    ``physics.period_s`` must be one number here (a point's section, :func:`points`).
+    """
+    period = physics["period_s"]
+    if isinstance(period, list | tuple):
+        raise ConfigError("drum.physics.period_s is a list: take one point (settings.points)")
+    return 2.0 * math.pi * float(physics["t0_s"]) / float(period)
+
+
+def _values(sec: Mapping, key: tuple) -> list:
+    v = sec[key[0]][key[1]]
+    return list(v) if isinstance(v, list | tuple) else [v]
+
+
+def points(section: Mapping) -> list[dict]:
+    """The parameter points of a section: one filled section per point, each with one
+    ``physics.period_s`` and one ``protocol.startup``.
+
+    With ``design: star`` (default) the first entry of every list gives the *reference
+    point* (listed first), and every further entry varies that one key from it (so four
+    periods and two start-ups give five points); ``product`` takes every combination.
+    A point's section does not depend on the other entries of the lists, so adding an
+    entry adds its point and changes no other.
+    """
+    sec = filled(section)
+    values = [_values(sec, key) for key in POINT_KEYS]
+    if sec["design"] == "product":
+        combos = [list(c) for c in itertools.product(*values)]
+    else:
+        ref = [v[0] for v in values]
+        combos = [ref]
+        for i, vals in enumerate(values):
+            combos += [ref[:i] + [v] + ref[i + 1 :] for v in vals[1:]]
+    out = []
+    for combo in combos:
+        p = copy.deepcopy(dict(sec))
+        for (a, b), v in zip(POINT_KEYS, combo, strict=True):
+            p[a][b] = v
+        out.append(p)
+    return out
+
+
+def reference_point(section: Mapping) -> dict:
+    """The first point of :func:`points`: the entries the paper's numbers refer to."""
+    return points(section)[0]
+
+
+def point_label(point: Mapping, section: Mapping) -> str:
+    """Suffix of a point's summary rows: ``""`` for the reference point, else the keys
+    where it differs from it, e.g. ``"[period=450s]"`` or ``"[startup=settled]"``."""
+    ref = reference_point(section)
+    diff = []
+    for a, b in POINT_KEYS:
+        if point[a][b] != ref[a][b]:
+            diff.append(_point_part(b, point[a][b]))
+    return f"[{','.join(diff)}]" if diff else ""
+
+
+def _point_part(key: str, value) -> str:
+    if key == "period_s":
+        return f"period={float(value):.4g}s"
+    return f"{key}={value}"
+
+
 def seed_physics(section: Mapping) -> dict:
-    """The subset of a (filled) section that defines a replica: physics, settle, protocol.
+    """The subset of a point's section that defines a replica: physics, protocol, and
+    settle for the ``settled`` start-up (the bad-state bound left out).
 
     :func:`granpipe.seeds.replica_rng` hashes it; sample sizes, fits and figures are
     not part of it.
     """
     sec = filled(section)
-    return {k: sec[k] for k in PHYSICS_KEYS}
+    omega(sec["physics"])  # one point only
+    keys = [k for k in PHYSICS_KEYS if k != "settle" or sec["protocol"]["startup"] == "settled"]
+    out = {k: copy.deepcopy(sec[k]) for k in keys}
+    for a, b in _NOT_SEEDED:
+        out[a].pop(b, None)
+    return out
 
 
 def _n_steps(seconds: float, dt_s: float, what: str) -> int:
@@ -115,7 +208,16 @@ class Steps:
     block : int
         Steps per stored block mean (block_s rounded to a whole number of steps).
     pre_rotation : int
-        Steps of rotation before t = 0 (1° = 62,500 steps at the paper's Ω and Δt).
+        Steps of rotation before t = 0 (1° = 62,500 steps at the paper's Ω and Δt); for
+        the ``paper`` start-up they start at the placement and include the fall.
+    alignment : int
+        Steps over which the tangent vector evolves before t = 0 (the paper start-up:
+        ``tangent_alignment_s`` in whole blocks, at most ``pre_rotation``; the settled
+        start-up: ``pre_rotation``, the tangent being set when the rotation starts).
+    realign : int
+        Steps over which a fresh tangent vector evolves before the decay window when the
+        avalanche became continuous only after the onset window (``tangent_alignment_s``
+        in whole blocks).
     onset : int
         Steps of the onset window (a whole number of blocks).
     decay_rotating : int
@@ -138,6 +240,8 @@ class Steps:
     dt_s: float
     block: int
     pre_rotation: int
+    alignment: int
+    realign: int
     onset: int
     decay_rotating: int
     decay: int
@@ -170,12 +274,16 @@ def steps(section: Mapping) -> Steps:
     def blocks(seconds, what):  # whole number of blocks, at least one
         return max(1, math.ceil(_n_steps(seconds, dt_s, what) / block - 1e-9))
 
-    pre = round(math.radians(pr["pre_rotation_deg"]) / (float(ph["omega"]) * dt))
+    pre = int(round(math.radians(pr["pre_rotation_deg"]) / (omega(ph) * dt)))
+    realign = block * round(_n_steps(pr["tangent_alignment_s"], dt_s, "") / block)
+    align = pre if pr["startup"] == "settled" else min(pre, realign)
     return Steps(
         dt=dt,
         dt_s=dt_s,
         block=block,
-        pre_rotation=int(pre),
+        pre_rotation=pre,
+        alignment=align,
+        realign=realign,
         onset=block * blocks(pr["onset_window_s"], "drum.protocol.onset_window_s"),
         decay_rotating=block * round(_n_steps(pr["decay_rotating_s"], dt_s, "") / block),
         decay=block * blocks(pr["decay_window_s"], "drum.protocol.decay_window_s"),
@@ -196,6 +304,7 @@ TINY_PROTOCOL = {
     "continuous_hold_s": 0.2,
     "max_rotation_s": 1.0,
     "chunk_s": 0.2,
+    "tangent_alignment_s": 0.1,
 }
 """Short windows for the tiny drum (tests, ``granpipe drum replica --tiny``)."""
 

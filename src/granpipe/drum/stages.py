@@ -1,9 +1,11 @@
 """The drum study's stages, as library functions the CLI (and so the workflow) calls.
 
-init → runs → ensemble → fits → figures (DESIGN.md, "Stages and what each writes").
-Each function takes the config subset its rule passes (``params``, a partial
-``drum`` section; missing keys take their schema defaults), reads its inputs,
-and writes its outputs atomically with that subset as provenance.
+init → runs → ensemble → fits → summary, figures (docs/architecture.md, "Stages").
+The simulation stages take one parameter point's config subset (``params``, a
+partial ``drum`` section; missing keys take their schema defaults); the later stages
+take the subsets :func:`granpipe.drum.layout.rule_params` builds. Each reads its
+inputs, checks that they belong together, and writes its outputs atomically with
+that subset as provenance.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import read_dataset, write_dataset
+from ..io import check_run_files, read_dataset, write_dataset
 from .settings import filled
 
 __all__ = [
@@ -24,6 +26,7 @@ __all__ = [
     "runs_stage",
     "ensemble_stage",
     "fits_stage",
+    "summary_stage",
     "figures_stage",
 ]
 
@@ -34,16 +37,23 @@ def _log(msg: str) -> None:
     print(f"[{time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
 
 
+def _point(sec) -> str:
+    from .layout import point_name
+
+    return point_name(sec)
+
+
 def init_stage(params: Mapping, batch: int, out: str | os.PathLike, threads: int = 1) -> Path:
-    """Place and settle every replica of ``batch``; write ``init/<point>/batch_<b>.nc``."""
-    from .protocol import settle_batch
+    """Place every replica of ``batch`` and run its start-up; write the init file."""
+    from .protocol import init_batch
 
     sec = filled(params)
-    ds = settle_batch(sec, int(batch), threads=threads, log=_log)
+    ds = init_batch(sec, int(batch), threads=threads, log=_log)
     seeds = [int(s) for s in ds["seed"].values]
     path = write_dataset(
-        ds, out, config_subset=params, seeds=seeds, study=STUDY, stage="init", batch=int(batch)
-    )
+        ds, out, config_subset=params, seeds=seeds, study=STUDY, stage="init",
+        batch=int(batch), point=_point(sec),
+    )  # fmt: skip
     _log(f"wrote {path}")
     return path
 
@@ -51,27 +61,35 @@ def init_stage(params: Mapping, batch: int, out: str | os.PathLike, threads: int
 def runs_stage(
     params: Mapping, batch: int, init: str | os.PathLike, out: str | os.PathLike, threads: int = 1
 ) -> Path:
-    """Run the protocol for every replica of ``batch`` from its settled state."""
+    """Run the protocol for every replica of ``batch`` from its init file."""
     from .protocol import run_batch
 
     sec = filled(params)
+    (info,) = check_run_files([init], study=STUDY, stage="init")
     init_ds = read_dataset(init)
+    if init_ds.attrs.get("point") != _point(sec):
+        raise ValueError(f"{init} holds point {init_ds.attrs.get('point')}, not {_point(sec)}")
+    if info["batch"] is not None and int(info["batch"]) != int(batch):
+        raise ValueError(f"{init} holds batch {info['batch']}, not batch {batch}")
     ds = run_batch(sec, int(batch), init_ds, threads=threads, log=_log)
     seeds = [int(s) for s in ds["seed"].values]
     path = write_dataset(
-        ds, out, config_subset=params, seeds=seeds, study=STUDY, stage="runs", batch=int(batch)
-    )
+        ds, out, config_subset=params, seeds=seeds, study=STUDY, stage="runs",
+        batch=int(batch), point=_point(sec),
+    )  # fmt: skip
     _log(f"wrote {path}")
     return path
 
 
 def ensemble_stage(params: Mapping, runs: Sequence[str | os.PathLike], out) -> Path:
-    """Stream the run files into ensemble means, standard errors and counts."""
+    """Stream the run files of one point into ensemble means, standard errors and counts."""
     from .fitting import reduce_runs
 
     sec = filled(params)
     t0 = time.perf_counter()
+    info = check_run_files(runs, study=STUDY)
     ds = reduce_runs(runs, exclude_flagged=sec["ensemble"]["exclude_flagged"])
+    ds.attrs["runs_config_hash"] = info[0]["config_hash"]
     _log(
         f"reduced {ds.attrs['n_batches']} batch(es): {ds.attrs['n_replicas']} replicas used, "
         f"{ds.attrs['n_excluded']} excluded, in {time.perf_counter() - t0:.1f} s"
@@ -86,28 +104,37 @@ def fits_stage(
     ensemble: str | os.PathLike,
     runs: Sequence[str | os.PathLike],
     out: str | os.PathLike,
-    summary: str | os.PathLike,
 ) -> Path:
-    """Fit onset time, sign changes and lags; write ``fits/<point>.nc`` and summary rows."""
-    from ..analysis.summary import results_dataset, write_summary
+    """Fit onset time, sign changes and lags of one point; write ``fits/<point>.nc``.
+
+    ``params["label"]`` (from :func:`granpipe.drum.layout.rule_params`) is appended to
+    every quantity name; the point's summary rows are stored in the file
+    (:func:`summary_stage` gathers them).
+    """
+    from ..analysis.summary import results_dataset
     from .fitting import PAPER_VALUES, drum_fits, load_units
 
-    sec = filled(params)
+    label = str(params.get("label", ""))
+    sec = filled({k: v for k, v in params.items() if k != "label"})
     fcfg = sec["fits"]
+    info = check_run_files(runs, study=STUDY)
     ens = read_dataset(ensemble)
+    if ens.attrs.get("runs_config_hash") not in (None, info[0]["config_hash"]):
+        raise ValueError(f"{ensemble} was reduced from other run files than {runs[0]}")
     units = load_units(runs, fcfg["bootstrap_unit"], sec["ensemble"]["exclude_flagged"])
     n_units = units["onset"].speed.shape[0]
     _log(
         f"bootstrap over {n_units} {fcfg['bootstrap_unit']}(s) "
         f"({units['onset'].n_replicas} replicas), {fcfg['bootstrap_resamples']} resamples"
     )
-    results, curves = drum_fits(ens, units, fcfg)
+    results, curves = drum_fits(ens, units, fcfg, label=label)
     for r in results:
         ci = f"[{r.ci_low:.3f}, {r.ci_high:.3f}]" if np.isfinite(r.ci_low) else ""
-        paper = PAPER_VALUES.get(r.quantity.removesuffix("_auto"))
+        paper = PAPER_VALUES.get(r.quantity.removesuffix("_auto")) if not label else None
         _log(
-            f"{r.quantity:32s} = {r.value:8.3f} ± {r.fit_error:.3f} {r.unit} {ci}"
+            f"{r.quantity:40s} = {r.value:9.4g} ± {r.fit_error:.3g} {r.unit} {ci}"
             + (f"  (paper {paper:.3f})" if paper is not None else "")
+            + (f"  -- {r.note}" if r.note else "")
         )
     ds = results_dataset(results).merge(curves)
     ds.attrs.update(curves.attrs)
@@ -115,29 +142,62 @@ def fits_stage(
         {k: ens.attrs[k] for k in ("n_replicas", "stop_time_s", "dt_s", "block_steps")},
         bootstrap_unit=fcfg["bootstrap_unit"],
         n_bootstrap_units=n_units,
+        label=label,
+        quantities=" ".join(r.quantity for r in results),
     )
     path = write_dataset(ds, out, config_subset=params, study=STUDY, stage="fits")
-    rows = [r.to_row(STUDY, PAPER_VALUES.get(r.quantity.removesuffix("_auto"))) for r in results]
-    write_summary(rows, summary, merge=True)
-    _log(f"wrote {path} and {len(rows)} rows of {summary}")
+    _log(f"wrote {path}")
+    return path
+
+
+def summary_stage(fits: Sequence[str | os.PathLike], summary: str | os.PathLike) -> Path:
+    """Gather the rows of every point's fits file into ``summary.csv`` (the paper's
+    numbers next to the reference point's rows, whose label is empty)."""
+    from ..analysis.summary import results_rows, write_summary
+    from .fitting import PAPER_VALUES
+
+    rows = []
+    for path in fits:
+        ds = read_dataset(path)
+        if ds.attrs.get("study") != STUDY or ds.attrs.get("stage") != "fits":
+            raise ValueError(f"{path} is not a drum fits file")
+        if ds.attrs.get("label", ""):
+            rows += results_rows(ds, STUDY)
+        else:  # the reference point: the paper's numbers beside its rows
+            rows += results_rows(ds, STUDY, lambda q: PAPER_VALUES.get(q.removesuffix("_auto")))
+    path = write_summary(rows, summary, merge=False)
+    _log(f"wrote {len(rows)} rows to {path}")
     return path
 
 
 def figures_stage(
     params: Mapping,
-    ensemble: str | os.PathLike,
-    fits: str | os.PathLike,
+    ensembles: Sequence[str | os.PathLike],
+    fits: Sequence[str | os.PathLike],
     snapshot: str | os.PathLike,
     outdir: str | os.PathLike,
 ) -> list[Path]:
-    """Figs. 2-5 as PNG and PDF in ``outdir``."""
-    from ..figures import drum as figs
-    from .layout import FIGURES
+    """Figs. 2-5 of the reference point and the comparison figures 6-7 (PNG and PDF).
 
-    sec = filled(params)
+    ``ensembles`` and ``fits`` hold one file per point, in the order of
+    ``params["points"]`` (``{name: {"period_s", "startup", "label"}}``, the first the
+    reference point).
+    """
+    from ..figures import drum as figs
+    from .layout import COMPARISON_FIGURES, FIGURES
+
+    sec = filled({"figures": params["figures"]})
     dpi = int(sec["figures"]["dpi"])
-    ens = read_dataset(ensemble)
-    fit = read_dataset(fits)
+    points = dict(params["points"])
+    if len(points) != len(ensembles) or len(points) != len(fits):
+        raise ValueError("figures need one ensemble and one fits file per point")
+    table = {}
+    for (name, meta), e, f in zip(points.items(), ensembles, fits, strict=True):
+        if Path(e).stem != name or Path(f).stem != name:
+            raise ValueError(f"{e} / {f} are not the files of point {name}")
+        table[name] = {**meta, "ensemble": read_dataset(e), "fits": read_dataset(f)}
+    ref = table[next(iter(table))]
+    ens, fit = ref["ensemble"], ref["fits"]
     run = read_dataset(snapshot)
     outdir = Path(outdir)
     makers = {
@@ -145,9 +205,11 @@ def figures_stage(
         3: lambda: figs.fig3_onset(ens, fit),
         4: lambda: figs.fig4_decay(ens, fit),
         5: lambda: figs.fig5_lambda_vs_speed(ens, fit),
+        6: lambda: figs.fig6_startup(table),
+        7: lambda: figs.fig7_lag_vs_rotation(table),
     }
     paths = []
-    for k, name in FIGURES.items():
+    for k, name in {**FIGURES, **COMPARISON_FIGURES}.items():
         paths += figs.save(makers[k](), outdir / f"fig{k}_{name}", dpi=dpi)
     _log(f"wrote {len(paths)} figure files to {outdir}")
     return paths

@@ -104,7 +104,10 @@ PI, PJ, PK = range(3)
 # angle at the last list build, the largest distance of a wall disk from the centre
 T_ORIGIN, THETA, LAST_OMEGA, THETA_BUILD, WALL_RMAX = range(5)
 ZB_NEAR = 5  # the bottom's height when the near-wall list was built
-NCLOCK = 6
+# the bad-state bound on overlaps, as a fraction of the smaller radius of the pair (set by
+# the Simulation; the per-pair bounds P_LIM are derived from it at each list build)
+OVERLAP_FRAC = 6
+NCLOCK = 7
 # counters (NCOUNT,)
 STEP, N_PAIRS, N_REBUILDS, FORCE_REBUILD, LOG2_SCALE, CONTACT_SUM, STEPS_RUN, N_WALLS = range(8)
 LAST_PAIR_CONTACTS = 8  # contacts among listed pairs at the last evaluation (pass choice)
@@ -166,8 +169,9 @@ def _update_wall_disks(vec, sca, walls, n_walls, wd, theta, omega):
 
 
 @njit
-def _pair_constants(sca, pair_start, pair_ij, pair_c, npairs):
-    """Owner index and per-pair constants of a freshly built list."""
+def _pair_constants(sca, pair_start, pair_ij, pair_c, npairs, overlap_frac):
+    """Owner index and per-pair constants of a freshly built list (the overlap bound is
+    ``overlap_frac`` times the smaller radius)."""
     radius = sca[RADIUS]
     inv_mass = sca[INV_MASS]
     n = pair_start.shape[0] - 1
@@ -182,7 +186,7 @@ def _pair_constants(sca, pair_start, pair_ij, pair_c, npairs):
         ai = radius[i]
         aj = radius[j]
         pair_c[P_SUM, k] = ai + aj
-        pair_c[P_LIM, k] = 0.5 * min(ai, aj)
+        pair_c[P_LIM, k] = overlap_frac * min(ai, aj)
         pair_c[P_MEFF, k] = 1.0 / (inv_mass[i] + inv_mass[j])
         pair_c[P_DIFF, k] = ai - aj
 
@@ -206,7 +210,7 @@ def _rebuild(
     )
     if npairs < 0:
         return False
-    _pair_constants(sca, pair_start, pair_ij, pair_c, npairs)
+    _pair_constants(sca, pair_start, pair_ij, pair_c, npairs, clock[OVERLAP_FRAC])
     p = _flat(vec[POS])
     b = _flat(vec[POS_BUILD])
     for k in range(p.shape[0]):
@@ -1131,10 +1135,10 @@ def _near_walls(vec, sca, ivec, fw, zb, skin, reset, clock, counters):
 
 
 @njit
-def _wall_candidates(vec, sca, ivec, fw, zb, reset, nnear, out, info, step):
+def _wall_candidates(vec, sca, ivec, fw, zb, reset, nnear, out, info, step, overlap_frac):
     """Disks of the near-wall list (``nnear`` in ``ivec[CELL_ITEMS]``) touching at least one
     flat wall, listed in ``out``; returns how many, or -1 (recorded in ``info``) if one
-    overlaps a wall by more than half its radius.
+    overlaps a wall by more than ``overlap_frac`` times its radius.
 
     One pass for all three walls (an absent wall sits at infinity). With ``reset``, the
     shear history against each wall (``sca[XI_LEFT + w]``) of the listed disks not
@@ -1166,7 +1170,7 @@ def _wall_candidates(vec, sca, ivec, fw, zb, reset, nnear, out, info, step):
             xi_b[i] = xi_b[i] if t_b else 0.0
         if t_l | t_r | t_b:
             for w in range(3):
-                if _wall_overlap(w, pos, i, fw, zb, a) > 0.5 * a:
+                if _wall_overlap(w, pos, i, fw, zb, a) > overlap_frac * a:
                     _fail(info, DEEP_OVERLAP, i, -1 - w, step)
                     return -1
             out[m] = i
@@ -1200,7 +1204,17 @@ def _flat_walls(law_id, vec, sca, ivec, law, fw, zb, vb, tangent, dt_hist, count
     if counters[NEAR_WALLS] < 0:
         _near_walls(vec, sca, ivec, fw, zb, skin, law_id == 1, clock, counters)
     m = _wall_candidates(
-        vec, sca, ivec, fw, zb, law_id == 1, counters[NEAR_WALLS], cand, info, step
+        vec,
+        sca,
+        ivec,
+        fw,
+        zb,
+        law_id == 1,
+        counters[NEAR_WALLS],
+        cand,
+        info,
+        step,
+        clock[OVERLAP_FRAC],
     )
     if m < 0:
         return -1

@@ -9,10 +9,11 @@ of the positions, and let the box law carry each contact's shear history across 
 rebuild by merging the old and new lists (:func:`carry_history`).
 
 Memory is fixed when a state is created (:func:`pair_capacity`), so the step loop
-never allocates: a disk can have at most
-``((2 a_max + skin + 0.75 a_min) / (0.75 a_min))²`` neighbours if no two disks
-overlap by more than half the smaller radius (the engine's bad-state bound), so a
-larger count means the state is already bad and the kernel reports it.
+never allocates: if no two disks overlap by more than ``f`` times the smaller radius
+(the engine's bad-state bound, ``Simulation.max_overlap``), no two centres are closer
+than ``2 s`` with ``s = (1 - f/2) a_min``, and a disk can have at most
+``((2 a_max + skin + s) / s)²`` neighbours; a larger count means the state is already
+bad and the kernel reports it.
 """
 
 from __future__ import annotations
@@ -26,20 +27,23 @@ from granpipe._jit import njit
 __all__ = ["pair_capacity", "cell_capacity", "build_pairs", "carry_history"]
 
 
-def pair_capacity(radii, skin) -> int:
+def pair_capacity(radii, skin, max_overlap=0.5) -> int:
     """Capacity of the half list for disks of the given radii (see module docstring).
 
     Parameters
     ----------
     radii : (N,) float64 [length]
     skin : float [length]
+    max_overlap : float
+        The bad-state bound on overlaps, as a fraction ``f < 2`` of the smaller radius.
     """
     radii = np.asarray(radii, dtype=np.float64)
     n = radii.size
     if n < 2:
         return 1
     a_min, a_max = float(radii.min()), float(radii.max())
-    per_disk = ((2.0 * a_max + skin + 0.75 * a_min) / (0.75 * a_min)) ** 2
+    s = (1.0 - 0.5 * float(max_overlap)) * a_min
+    per_disk = ((2.0 * a_max + skin + s) / s) ** 2
     return int(math.ceil(0.5 * per_disk * n)) + 16
 
 

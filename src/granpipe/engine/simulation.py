@@ -25,7 +25,7 @@ __all__ = ["Simulation", "State", "Ensemble", "Record"]
 
 _STATUS_TEXT = {
     K.NONFINITE: "non-finite position or velocity",
-    K.DEEP_OVERLAP: "overlap deeper than half a radius",
+    K.DEEP_OVERLAP: "overlap deeper than the bound (max_overlap times the smaller radius)",
     K.LIST_OVERFLOW: "neighbour list overflow (disks packed beyond the overlap bound)",
     K.TANGENT_NONFINITE: "non-finite tangent vector",
 }
@@ -129,7 +129,7 @@ class Ensemble:
     def from_arrays(arrays):
         """Rebuild a :class:`State` or :class:`Ensemble` saved by :meth:`to_arrays`."""
         fmt = int(np.asarray(arrays.get("engine_format", -1)))
-        if fmt not in (2, 3, _FORMAT):
+        if fmt not in (2, 3, 4, _FORMAT):
             raise ConfigError(f"engine state format {fmt} is not {_FORMAT}; rerun to regenerate")
         storage = {}
         for key, val in arrays.items():
@@ -152,10 +152,14 @@ class Ensemble:
         if fmt == 2:
             # one-byte touch flags then (64-bit now: the law passes then need no packing)
             storage["touch"] = storage["touch"].astype(np.int64)
-        if fmt == _FORMAT:
+        if fmt in (4, _FORMAT):
             vec = storage["vec"]
             storage.update(_scratch(vec.shape[:1], vec.shape[2], storage["pair_ij"].shape[-1]))
-        else:
+        if fmt < _FORMAT:
+            # no overlap-bound slot then: the bound was half the smaller radius
+            storage["clock"] = _pad(storage["clock"], K.NCLOCK)
+            storage["clock"][..., K.OVERLAP_FRAC] = 0.5
+        if fmt < 4:
             # no near-wall list then: an empty clock slot, and a counter saying "rebuild it"
             storage["clock"] = _pad(storage["clock"], K.NCLOCK)
             storage["counters"] = _pad(storage["counters"], K.NCOUNT)
@@ -382,7 +386,7 @@ def _pad(arr, width):
     return out
 
 
-_FORMAT = 4
+_FORMAT = 5
 # storage that only carries values within one step or list build (pair buffers, the old
 # list while histories are carried over): not saved by ``to_arrays``
 _SCRATCH_KEYS = ("old_start", "old_j", "old_xi", "buf")
@@ -443,6 +447,11 @@ class Simulation:
     skin : float or None [length]
         Verlet skin; the list is rebuilt once a disk has moved ``skin/2``
         (default: 0.1 times the smallest radius at state creation).
+    max_overlap : float
+        Bad-state bound: a run stops (``SimulationError``) when two disks overlap by more
+        than ``max_overlap`` times the smaller radius, or a disk and a flat wall by more
+        than that times its radius (default 0.5; must lie in (0, 2): at 2 two equal
+        centres may coincide and the contact normal is lost).
     parallel : bool
         Run ensembles of several replicas under ``prange`` (results are identical
         either way).
@@ -455,6 +464,7 @@ class Simulation:
     flat_walls: FlatWalls | None = None
     skin: float | None = None
     parallel: bool = True
+    max_overlap: float = 0.5
 
     def __post_init__(self):
         if not isinstance(self.law, DrumLaw | BoxLaw):
@@ -465,6 +475,8 @@ class Simulation:
             raise ConfigError("gravity must have 2 components")
         if self.skin is not None and not self.skin > 0:
             raise ConfigError(f"skin must be > 0, got {self.skin!r}")
+        if not 0.0 < self.max_overlap < 2.0:
+            raise ConfigError(f"max_overlap must lie in (0, 2), got {self.max_overlap!r}")
 
     def replace(self, **changes) -> Simulation:
         """A copy with some fields changed (e.g. ``sim.replace(wall_disks=WallDisks(...))``)."""
@@ -561,7 +573,7 @@ class Simulation:
             inv_inertia = np.zeros_like(inv_inertia)
 
         skin = self.skin if self.skin is not None else 0.1 * float(rad.min())
-        cap = max(pair_capacity(rad[r], skin) for r in range(r_count))
+        cap = max(pair_capacity(rad[r], skin, self.max_overlap) for r in range(r_count))
         ccap = cell_capacity(n)
         nw = wall.sum(axis=1)
         n_wmax = max(int(nw.max()), 1)
@@ -589,6 +601,7 @@ class Simulation:
         ivec[:, K.IS_WALL] = wall
         clock = np.zeros((r_count, K.NCLOCK))
         clock[:, K.T_ORIGIN] = float(time)
+        clock[:, K.OVERLAP_FRAC] = self.max_overlap
         clock[:, K.WALL_RMAX] = np.sqrt((ref**2).sum(-1)).max(-1)
         counters = np.zeros((r_count, K.NCOUNT), dtype=np.int64)
         counters[:, K.N_WALLS] = nw
@@ -637,9 +650,10 @@ class Simulation:
             s["counters"][:, K.STEP] = 0
             s["dt"] = float(self.dt)
         skin = self.skin if self.skin is not None else s["skin"]
-        if skin != s["skin"]:
+        frac = s["clock"][:, K.OVERLAP_FRAC]
+        if skin != s["skin"] or np.any(frac != self.max_overlap):
             rad = s["sca"][:, K.RADIUS]
-            cap = max(pair_capacity(rad[r], skin) for r in range(rad.shape[0]))
+            cap = max(pair_capacity(rad[r], skin, self.max_overlap) for r in range(rad.shape[0]))
             if cap > s["pair_xi"].shape[1]:
                 for key in _PAIR_KEYS:
                     old = s[key]
@@ -648,6 +662,7 @@ class Simulation:
                     grown[..., : old.shape[-1]] = old
                     s[key] = grown
             s["skin"] = skin
+            frac[:] = self.max_overlap
             s["counters"][:, K.FORCE_REBUILD] = 1
         return skin
 
@@ -781,7 +796,7 @@ class Simulation:
         Raises
         ------
         SimulationError
-            On a non-finite state or an overlap deeper than half a radius; names the
+            On a non-finite state or an overlap deeper than ``max_overlap``; names the
             particle, step and time (and replica for an ensemble). The state is left as
             it was at the failing step.
         """

@@ -6,6 +6,9 @@
   of the sign change, and V(t) on a second axis, onset window.
 * :func:`fig4_decay` — the same for the decay window (drum stopped at t = 5 s).
 * :func:`fig5_lambda_vs_speed` — λ̄ against V for onset and decay, arrows along time.
+* :func:`fig6_startup` — V(t) and λ̄(t) of each start-up (paper, settled) side by side.
+* :func:`fig7_lag_vs_rotation` — onset and decay lags, with their CIs, against the
+  drum's angular speed Ω (beyond the paper).
 
 Inputs are the datasets the pipeline writes: the ensemble file (``reduce_runs``), the
 fits file (fitted numbers plus the curves of ``drum_fits``) and a run file holding a
@@ -33,6 +36,8 @@ __all__ = [
     "fig3_onset",
     "fig4_decay",
     "fig5_lambda_vs_speed",
+    "fig6_startup",
+    "fig7_lag_vs_rotation",
     "save",
 ]
 
@@ -197,6 +202,88 @@ def fig5_lambda_vs_speed(ens: xr.Dataset, fits: xr.Dataset) -> plt.Figure:
     ax.set_xlabel(f"V [{ens['speed_onset_mean'].attrs.get('units', '')}]")
     ax.set_ylabel(f"λ̄ [{ens['lambda_onset_mean'].attrs.get('units', '')}]")
     ax.legend(title="avalanche", fontsize=8)
+    return fig
+
+
+def _same(points: dict, key: str) -> dict:
+    """The points that share the reference point's value of every key but ``key``."""
+    items = list(points.items())
+    ref = items[0][1]
+    other = {"period_s": "startup", "startup": "period_s"}[key]
+    return {n: p for n, p in items if p[other] == ref[other]}
+
+
+def fig6_startup(points: dict) -> plt.Figure:
+    """V(t) and λ̄(t) of the onset and decay windows for each start-up at the reference
+    period: the paper's (disks fall in the turning drum) and the settled pile.
+
+    ``points``: ``{name: {"period_s", "startup", "label", "ensemble", "fits"}}``, the
+    reference point first (:func:`granpipe.drum.stages.figures_stage`).
+    """
+    from ..analysis.smoothing import moving_average
+
+    chosen = _same(points, "startup")
+    fig, axes = plt.subplots(2, 2, figsize=(10.0, 6.4), layout="constrained", sharex="col")
+    colors = {"paper": "tab:red", "settled": "tab:gray"}
+    for p in chosen.values():
+        ens, fit, lab = p["ensemble"], p["fits"], p["label"]
+        q = int(fit.attrs.get("moving_average_q", 0))
+        n = int(ens.attrs.get("n_replicas", 0))
+        c = colors.get(p["startup"], None)
+        for j, w in enumerate(("onset", "decay")):
+            t = ens[f"seconds_{w}"].values
+            V = moving_average(ens[f"speed_{w}_mean"].values, max(1, q // 5))
+            axes[0, j].plot(t, V, "-", color=c, lw=1.2, label=f"{p['startup']} ({n} replicas)")
+            axes[1, j].plot(t, fit[f"lambda_bar_{w}"].values, "-", color=c, lw=1.5)
+            if w == "onset":
+                t_on = _value(fit, f"onset_time_auto{lab}")
+                if np.isfinite(t_on):
+                    axes[0, 0].axvline(t_on, color=c, ls=":", lw=1.0)
+    for j, w in enumerate(("onset", "decay")):
+        axes[0, j].set_ylabel("V [d_s/t0]")
+        axes[0, j].set_ylim(bottom=0)
+        axes[1, j].set_ylabel("λ̄ [1/t0]")
+        axes[1, j].axhline(0.0, color="0.5", lw=0.6)
+        axes[1, j].set_xlabel(f"t [s], {w} window")
+    axes[0, 0].legend(title="start-up", fontsize=8)
+    axes[0, 0].set_title("onset window (dotted: automatic onset time)", fontsize=9)
+    axes[0, 1].set_title("decay window (drum stopped at 5 s)", fontsize=9)
+    return fig
+
+
+def fig7_lag_vs_rotation(points: dict) -> plt.Figure:
+    """Onset and decay lags (sign change of λ minus change of avalanche state) against the
+    drum's angular speed Ω, with their bootstrap intervals; the paper's lags at 900 s."""
+    from ..drum.fitting import PAPER_VALUES
+
+    chosen = _same(points, "period_s")
+    fig, ax = plt.subplots(figsize=(6.0, 4.4), layout="constrained")
+    for kind, color, paper in (
+        ("onset_lag", "tab:red", PAPER_VALUES["onset_lag"]),
+        ("decay_lag", "tab:blue", PAPER_VALUES["decay_lag"]),
+    ):
+        for suffix, mfc, dx in (("_auto", color, 1.0), ("", "white", 1.04)):
+            om, val, lo, hi = [], [], [], []
+            for p in chosen.values():
+                name = f"{kind}{suffix}{p['label']}"
+                om.append(2.0 * np.pi / float(p["period_s"]) * dx)
+                val.append(_value(p["fits"], name))
+                lo.append(_value(p["fits"], f"{name}_ci_low"))
+                hi.append(_value(p["fits"], f"{name}_ci_high"))
+            val, lo, hi = map(np.asarray, (val, lo, hi))
+            err = np.vstack([np.where(np.isfinite(lo), val - lo, 0.0),
+                             np.where(np.isfinite(hi), hi - val, 0.0)])  # fmt: skip
+            window = "automatic windows" if suffix else "paper's windows"
+            ax.errorbar(om, val, yerr=err, fmt="o", color=color, mfc=mfc, capsize=3,
+                        label=f"{kind.split('_')[0]}, {window}")  # fmt: skip
+        ax.plot([2.0 * np.pi / 900.0], [paper], "*", color=color, ms=12, mec="k",
+                label=f"{kind.split('_')[0]}, paper (900 s)")  # fmt: skip
+    ax.axhline(0.0, color="0.5", lw=0.6)
+    ax.set_xscale("log")
+    ax.set_xlabel("Ω [rad/s]")
+    ax.set_ylabel("lag [s]")
+    ax.set_title("lag of the λ sign change behind the avalanche state (95 % CIs)", fontsize=9)
+    ax.legend(fontsize=7)
     return fig
 
 
