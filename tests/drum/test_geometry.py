@@ -60,7 +60,7 @@ def test_period_and_steps_of_the_protocol():
     assert st.pre_rotation == 62_500  # 1 degree = 2.5 s
     # paper start-up: the tangent vector starts tangent_alignment_s before t = 0;
     # settled: at the start of the rotation
-    assert st.alignment == 25_000
+    assert st.alignment == 62_500  # from the placement
     assert steps({"protocol": {"startup": "settled"}}).alignment == st.pre_rotation
     assert st.decay_rotating == 125_000  # the stop at 5 s
     assert st.onset % st.block == 0 and st.decay % st.chunk == 0

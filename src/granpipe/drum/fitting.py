@@ -354,6 +354,23 @@ def _onset_window(t, mV, q, cfg, auto: bool):
     return np.maximum(float(t[0]), centre - hw), centre + hw
 
 
+def _auto_zero_window(t, ml, search, half_width, direction):
+    """Automatic window of a sign-change fit, vectorised over series ``ml`` (..., T).
+
+    Two passes, robust to the many zero crossings that noise gives λ̄: a linear fit of λ
+    over the whole ``search`` range (each bound a float or an array (...,)) must rise
+    (``direction`` +1) or fall (−1) and cross zero inside the range; the window of
+    half-width ``half_width`` is centred on that crossing. NaN bounds where it does not.
+    """
+    lo = np.asarray(search[0], dtype=np.float64)
+    hi = np.asarray(search[1], dtype=np.float64)
+    z, _, ex = zero_crossing_times(t, ml, (lo, hi))
+    slope = ex["coef"][..., 1]
+    ok = (np.sign(slope) == direction) & (z >= lo) & (z <= hi)
+    c = np.where(ok, z, np.nan)
+    return c - half_width, c + half_width
+
+
 def _onset_analysis(t, ens, units, cfg, q, *, auto, suffix):
     """Onset time (a V minimum), its curvature, the sign change and the lag of the onset
     window, with a joint bootstrap in which every resample applies the same rules: its
@@ -375,11 +392,8 @@ def _onset_analysis(t, ens, units, cfg, q, *, auto, suffix):
     if auto:
         change = dataclasses.replace(change, method=change.method + " (auto window)")
     curv = _curvature(change, suffix, n)
-    zwin = "auto" if auto else zcfg
-    sign = zero_crossing_time(
-        t, mL, zwin, sL, half_width=half_width, search=search, smooth_q=q, direction=+1,
-        quantity=f"onset_sign_change_time{suffix}", n=n,
-    )  # fmt: skip
+    zwin = _auto_zero_window(t, mL, search, half_width, +1) if auto else zcfg
+    sign = _sign_change(t, mL, zwin, sL, f"onset_sign_change_time{suffix}", n, auto)
     lag_ = lag(sign, change, quantity=f"onset_lag{suffix}")
     v_ref, z_ref = change.t_ref, sign.t_ref
 
@@ -389,8 +403,7 @@ def _onset_analysis(t, ens, units, cfg, q, *, auto, suffix):
         if auto:
             start = argmin_time(t, mv, tuple(cfg["vertex_search_s"]), q)
             start = np.where(np.isfinite(start), start, float(t[0]))
-            c = first_crossing(t, moving_average(ml, q), (start[:, None], float(t[-1])), +1)
-            win = (c - half_width, c + half_width)
+            win = _auto_zero_window(t, ml, (start, float(t[-1])), half_width, +1)
         else:
             win = zcfg
         z, _, _ = zero_crossing_times(t, ml, win, sL, t_ref=z_ref)
@@ -408,6 +421,19 @@ def _onset_analysis(t, ens, units, cfg, q, *, auto, suffix):
             method="fraction of bootstrap resamples whose vertex is a minimum inside its window",
         )  # fmt: skip
     return out
+
+
+def _sign_change(t, mL, window, sL, quantity, n, auto) -> FitResult:
+    """Zero of a linear fit of λ on ``window`` (NaN with a note if there is none)."""
+    lo, hi = (float(x) for x in window)
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return FitResult(quantity, math.nan, math.nan, "s", n=n, method="linear fit, zero",
+                         note="the linear fit of λ over the search range does not cross "
+                         "zero the right way inside it: no sign change")  # fmt: skip
+    res = zero_crossing_time(t, mL, (lo, hi), sL, quantity=quantity, n=n)
+    if auto:
+        res = dataclasses.replace(res, method=res.method + " (auto window)")
+    return res
 
 
 def _curvature(change: FitResult, suffix: str, n: int) -> FitResult:
@@ -431,20 +457,13 @@ def _decay_analysis(t, ens, units, cfg, q, stop, *, auto, suffix):
     zcfg = tuple(cfg["decay_zero_window_s"])
     half_width = 0.5 * (zcfg[1] - zcfg[0])
     search = (stop, float(t[-1]))
-    zwin = "auto" if auto else zcfg
-    sign = zero_crossing_time(
-        t, mL, zwin, sL, half_width=half_width, search=search, smooth_q=q, direction=-1,
-        quantity=f"decay_sign_change_time{suffix}", n=n,
-    )  # fmt: skip
+    zwin = _auto_zero_window(t, mL, search, half_width, -1) if auto else zcfg
+    sign = _sign_change(t, mL, zwin, sL, f"decay_sign_change_time{suffix}", n, auto)
     lag_ = lag(sign, stop, quantity=f"decay_lag{suffix}")
     z_ref = sign.t_ref
 
     def statistic(mv, ml):
-        if auto:
-            c = first_crossing(t, moving_average(ml, q), search, -1)
-            win = (c - half_width, c + half_width)
-        else:
-            win = zcfg
+        win = _auto_zero_window(t, ml, search, half_width, -1) if auto else zcfg
         z, _, _ = zero_crossing_times(t, ml, win, sL, t_ref=z_ref)
         return np.stack([z, z - stop], axis=-1)
 

@@ -76,12 +76,12 @@ def rule_params(section: Mapping) -> dict[str, dict]:
     "summary": ...}``: a simulation depends on its point's physics, settle (settled
     start-up only), protocol and batch size; the ensemble on ``exclude_flagged``; the
     fits on that and ``fits`` (and its point's label, for the row names); the figures on
-    ``figures`` and the table of points (name -> period, start-up, label; the reference
-    first). Editing the physics of one point, or adding a point, changes no other
+    ``figures`` and the list of points (name, period, start-up, label; the reference
+    first: a list, because the JSON of the params has sorted keys). Editing the physics of one point, or adding a point, changes no other
     point's subsets.
     """
     sec = filled(section)
-    sim, fits, table = {}, {}, {}
+    sim, fits, table = {}, {}, []
     ensemble = {"ensemble": {"exclude_flagged": sec["ensemble"]["exclude_flagged"]}}
     for name, p in point_sections(sec).items():
         keys = [k for k in PHYSICS_KEYS if k != "settle" or p["protocol"]["startup"] == "settled"]
@@ -90,11 +90,12 @@ def rule_params(section: Mapping) -> dict[str, dict]:
             "ensemble": {"batch_size": p["ensemble"]["batch_size"]},
         }
         fits[name] = {**ensemble, "fits": sec["fits"], "label": point_label(p, sec)}
-        table[name] = {
+        table.append({
+            "name": name,
             "period_s": p["physics"]["period_s"],
             "startup": p["protocol"]["startup"],
             "label": fits[name]["label"],
-        }
+        })  # fmt: skip
     return {
         "sim": sim,
         "ensemble": ensemble,
@@ -122,8 +123,9 @@ def run_file(point: Mapping, batch: str | int) -> str:
 
 
 def _files(section: Mapping, kind: str, point: str | None) -> list[str]:
-    names = point_names(section) if point is None else [point]
-    return [f"{kind}/{p}/batch_{b}.nc" for p in names for b in batch_ids(section)]
+    sections = point_sections(section)
+    names = list(sections) if point is None else [point]
+    return [f"{kind}/{p}/batch_{b}.nc" for p in names for b in batch_ids(sections[p])]
 
 
 def init_files(section: Mapping, point: str | None = None) -> list[str]:

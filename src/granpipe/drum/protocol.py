@@ -35,10 +35,13 @@ Then, for both:
    V over the preceding ``protocol.continuous_hold_s`` exceeds
    ``1 + protocol.continuous_excess`` times the speed of rigid rotation with the drum,
    Ω sqrt(Σ r_i²). The first such time after t = 0 is recorded (``continuous_time``).
-   If it flows at the end of the onset window, the decay window starts there and the
-   tangent vector simply goes on. Otherwise the drum keeps turning with the tangent
-   vector switched off (forward dynamics only) until it flows, then a fresh tangent
-   vector evolves for ``tangent_alignment_s`` and the decay window starts. If it does
+   If it flows at the end of the onset window, the decay window starts there. Otherwise
+   the drum keeps turning until it flows, at a chunk end, and the decay window starts
+   there; the tangent vector goes on evolving meanwhile (``tangent_while_waiting``,
+   default). With ``tangent_while_waiting: false`` it is switched off during the wait
+   (forward dynamics only) and a fresh one evolves for ``decay_alignment_s`` before the
+   decay window; the trajectory is the same, but docs/drum.md ("Alignment") shows that
+   2.5 s are not enough for λ of the decay window to be unchanged. If it does
    not flow by ``protocol.max_rotation_s`` after t = 0, the replica is flagged
    (``continuous = 0``), its decay window is recorded anyway, and by default it is left
    out of the ensemble.
@@ -446,16 +449,17 @@ def run_protocol(
     # criterion) until it flows, then align a fresh tangent vector before the decay window
     is_flowing = flowing()
     waited = False
+    keep = bool(protocol["tangent_while_waiting"])
     while not is_flowing and done < st.max_rotation:
         rec = advance(sim, st.chunk, st.block, "waiting for a continuous avalanche",
-                      (done + st.chunk) * st.dt_s, tangent=False)  # fmt: skip
+                      (done + st.chunk) * st.dt_s, tangent=keep)  # fmt: skip
         speeds.append(rec.global_speed)
         done += st.chunk
         waited = True
         is_flowing = flowing()
         if t_cont is None and is_flowing:
             t_cont = done * st.dt_s
-    if waited:
+    if waited and not keep:
         new_tangent()
         align(st.realign, "aligning the tangent vector", (done + st.realign) * st.dt_s)
         done += st.realign

@@ -131,7 +131,8 @@ def points(section: Mapping) -> list[dict]:
     point* (listed first), and every further entry varies that one key from it (so four
     periods and two start-ups give five points); ``product`` takes every combination.
     A point's section does not depend on the other entries of the lists, so adding an
-    entry adds its point and changes no other.
+    entry adds its point and changes no other. Points other than the reference have
+    ``ensemble.variant_replicas`` replicas when that is set.
     """
     sec = filled(section)
     values = [_values(sec, key) for key in POINT_KEYS]
@@ -143,10 +144,13 @@ def points(section: Mapping) -> list[dict]:
         for i, vals in enumerate(values):
             combos += [ref[:i] + [v] + ref[i + 1 :] for v in vals[1:]]
     out = []
-    for combo in combos:
+    variant = sec["ensemble"]["variant_replicas"]
+    for i, combo in enumerate(combos):
         p = copy.deepcopy(dict(sec))
         for (a, b), v in zip(POINT_KEYS, combo, strict=True):
             p[a][b] = v
+        if i > 0 and variant is not None:
+            p["ensemble"]["n_replicas"] = int(variant)
         out.append(p)
     return out
 
@@ -208,16 +212,17 @@ class Steps:
     block : int
         Steps per stored block mean (block_s rounded to a whole number of steps).
     pre_rotation : int
-        Steps of rotation before t = 0 (1° = 62,500 steps at the paper's Ω and Δt); for
-        the ``paper`` start-up they start at the placement and include the fall.
+        Steps of rotation before t = 0: ``pre_rotation_deg`` (1° = 62,500 steps at the
+        paper's Ω and Δt), or ``pre_rotation_s`` when set; for the ``paper`` start-up
+        they start at the placement and include the fall.
     alignment : int
         Steps over which the tangent vector evolves before t = 0 (the paper start-up:
         ``tangent_alignment_s`` in whole blocks, at most ``pre_rotation``; the settled
         start-up: ``pre_rotation``, the tangent being set when the rotation starts).
     realign : int
-        Steps over which a fresh tangent vector evolves before the decay window when the
-        avalanche became continuous only after the onset window (``tangent_alignment_s``
-        in whole blocks).
+        With ``tangent_while_waiting: false``: steps from the moment the avalanche became
+        continuous, when that was after the onset window, to the decay window, over which
+        a fresh tangent vector aligns (``decay_alignment_s`` in whole blocks).
     onset : int
         Steps of the onset window (a whole number of blocks).
     decay_rotating : int
@@ -274,9 +279,13 @@ def steps(section: Mapping) -> Steps:
     def blocks(seconds, what):  # whole number of blocks, at least one
         return max(1, math.ceil(_n_steps(seconds, dt_s, what) / block - 1e-9))
 
-    pre = int(round(math.radians(pr["pre_rotation_deg"]) / (omega(ph) * dt)))
-    realign = block * round(_n_steps(pr["tangent_alignment_s"], dt_s, "") / block)
-    align = pre if pr["startup"] == "settled" else min(pre, realign)
+    if pr["pre_rotation_s"] is None:
+        pre = int(round(math.radians(pr["pre_rotation_deg"]) / (omega(ph) * dt)))
+    else:
+        pre = _n_steps(pr["pre_rotation_s"], dt_s, "drum.protocol.pre_rotation_s")
+    realign = block * round(_n_steps(pr["decay_alignment_s"], dt_s, "") / block)
+    align = block * round(_n_steps(pr["tangent_alignment_s"], dt_s, "") / block)
+    align = pre if pr["startup"] == "settled" else min(pre, align)
     return Steps(
         dt=dt,
         dt_s=dt_s,
@@ -305,6 +314,7 @@ TINY_PROTOCOL = {
     "max_rotation_s": 1.0,
     "chunk_s": 0.2,
     "tangent_alignment_s": 0.1,
+    "decay_alignment_s": 0.1,
 }
 """Short windows for the tiny drum (tests, ``granpipe drum replica --tiny``)."""
 

@@ -180,19 +180,20 @@ def figures_stage(
     """Figs. 2-5 of the reference point and the comparison figures 6-7 (PNG and PDF).
 
     ``ensembles`` and ``fits`` hold one file per point, in the order of
-    ``params["points"]`` (``{name: {"period_s", "startup", "label"}}``, the first the
-    reference point).
+    ``params["points"]`` (a list of ``{"name", "period_s", "startup", "label"}``, the
+    first the reference point).
     """
     from ..figures import drum as figs
     from .layout import COMPARISON_FIGURES, FIGURES
 
     sec = filled({"figures": params["figures"]})
     dpi = int(sec["figures"]["dpi"])
-    points = dict(params["points"])
+    points = list(params["points"])
     if len(points) != len(ensembles) or len(points) != len(fits):
         raise ValueError("figures need one ensemble and one fits file per point")
     table = {}
-    for (name, meta), e, f in zip(points.items(), ensembles, fits, strict=True):
+    for meta, e, f in zip(points, ensembles, fits, strict=True):
+        name = meta["name"]
         if Path(e).stem != name or Path(f).stem != name:
             raise ValueError(f"{e} / {f} are not the files of point {name}")
         table[name] = {**meta, "ensemble": read_dataset(e), "fits": read_dataset(f)}
