@@ -1,4 +1,5 @@
-# granpipe workflow: three granular-dynamics studies (SPEC.md), five stages each (DESIGN.md).
+# granpipe workflow: three granular-dynamics studies (docs/), five stages each
+# (docs/architecture.md).
 #
 #   snakemake --cores 2                                  # default scale (config/config.yaml)
 #   snakemake --cores 2 --configfile config/quick.yaml   # another scale: that file alone
@@ -7,14 +8,18 @@
 # A scale file given with --configfile is used on its own (not merged over
 # config/config.yaml), so each scale is exactly what its file says.
 
-from granpipe.config import validate as validate_config
+from granpipe.config import read_yaml, validate as validate_config
 
 if not workflow.config_settings.configfiles:
 
     configfile: "config/config.yaml"
 
 
-# Stops the workflow before any job runs, naming the bad key (granpipe.errors.ConfigError).
+# Stops the workflow before any job runs, naming the bad key (granpipe.errors.ConfigError):
+# the config files are read again strictly (a key given twice is refused with its line;
+# Snakemake's own reader keeps the last), then validated as `granpipe check-config` does.
+for _path in workflow.config_settings.configfiles or ["config/config.yaml"]:
+    read_yaml(_path)
 validate_config(config, f"{workflow.basedir}/workflow/schemas/config.schema.yaml")
 
 

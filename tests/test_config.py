@@ -6,7 +6,7 @@ import yaml
 from granpipe import config
 from granpipe.errors import ConfigError
 
-SCALES = ["config/config.yaml", "config/quick.yaml", "config/paper.yaml"]
+SCALES = ["config/config.yaml", "config/quick.yaml", "config/validation.yaml", "config/paper.yaml"]
 
 
 @pytest.fixture(params=SCALES)
@@ -138,3 +138,57 @@ def test_missing_and_invalid_files(tmp_path):
     (tmp_path / "bad.yaml").write_text("scale: [unclosed\n")
     with pytest.raises(ConfigError, match="not valid YAML"):
         config.load(tmp_path / "bad.yaml")
+
+
+def _quick(repo):
+    return yaml.safe_load((repo / "config/quick.yaml").read_text())
+
+
+@pytest.mark.parametrize(
+    "path, value, match",
+    [
+        (("drum", "fits", "lowpass_fraction"), float("nan"), "drum.fits.lowpass_fraction"),
+        (("box", "physics", "mu"), float("inf"), "box.physics.mu"),
+        (("drum", "fits", "onset_zero_window_s"), [0.5, 99.0], "beyond the recorded window"),
+        (("drum", "fits", "decay_zero_window_s"), [1.2, 0.6], "must be increasing"),
+        (("drum", "settle", "min_time_s"), 9.0, "min must not exceed max"),
+        (("drum", "figures", "snapshot_batch"), 7, "drum.figures.snapshot_batch"),
+        (("drum", "ensemble", "n_replicas"), 10**6, "simulation jobs"),
+        (("box", "fits", "N_l"), 33, "box.fits.N_l"),
+        (("column", "continuum", "bsr_dz"), 0.3, "column.continuum.bsr_dz"),
+        (("column", "continuum", "convergence", "lw_refinements"), [2, 3, 8], "lw_refinements"),
+    ],
+)
+def test_refusals_before_any_job_name_the_key(repo, path, value, match):
+    """NaN and inf anywhere, fit windows outside the record or reversed, min > max, the
+    snapshot batch beyond the batches, a plan too large to build, a grid selection not in
+    the grid, a BSR cell that does not divide h, refinements that are not nested."""
+    cfg = _quick(repo)
+    _set(cfg, path, value)
+    with pytest.raises(ConfigError, match=match.replace(".", r"\.")):
+        config.validate(cfg)
+
+
+def test_yaml_errors_and_duplicate_keys_name_file_and_line(tmp_path, repo):
+    (tmp_path / "dup.yaml").write_text("scale: quick\nresults: results\nscale: other\n")
+    with pytest.raises(ConfigError, match=r"dup\.yaml, line 3.*duplicate key 'scale'.*line 1"):
+        config.load(tmp_path / "dup.yaml")
+    (tmp_path / "broken.yaml").write_text("scale: quick\nstudies: [drum\n")
+    with pytest.raises(ConfigError, match=r"broken\.yaml, line \d+, column \d+"):
+        config.load(tmp_path / "broken.yaml")
+    # the scale files themselves have no duplicate key
+    for name in ("config.yaml", "quick.yaml", "validation.yaml", "paper.yaml"):
+        config.read_yaml(repo / "config" / name)
+
+
+def test_check_config_cli_reports_one_line_not_a_traceback(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    (tmp_path / "dup.yaml").write_text("scale: a\nscale: b\n")
+    granpipe = str(Path(sys.executable).with_name("granpipe"))
+    proc = subprocess.run([granpipe, "check-config", str(tmp_path / "dup.yaml")],
+                          capture_output=True, text=True)  # fmt: skip
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    assert "line 2" in proc.stderr and "duplicate key" in proc.stderr

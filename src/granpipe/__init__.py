@@ -1,6 +1,6 @@
 """granpipe: granular-dynamics studies (drum, column, box) as a Snakemake workflow.
 
-The library is organised as DESIGN.md describes: ``engine`` (jitted 2D DEM kernels),
+The library is organised as docs/architecture.md describes: ``engine`` (jitted 2D DEM kernels),
 one package per study (``drum``, ``column``, ``box``), ``analysis`` (ensemble
 reduction, fits, bootstrap), ``io`` (netCDF with provenance, atomic writes),
 ``figures`` (one function per figure), ``config`` and ``seeds``.

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import copy
 import functools
+import importlib
+import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -25,7 +27,7 @@ import yaml
 
 from .errors import ConfigError
 
-__all__ = ["schema_dir", "load", "validate", "study_section", "STUDIES"]
+__all__ = ["schema_dir", "load", "read_yaml", "validate", "study_section", "STUDIES"]
 
 STUDIES = ("drum", "column", "box")
 
@@ -127,11 +129,33 @@ def _check_with_jsonschema(cfg: Mapping, schema_file: Path) -> None:
         raise ConfigError("invalid configuration:\n  - " + "\n  - ".join(dict.fromkeys(leaf)))
 
 
+def _non_finite(obj, path=()) -> list[str]:
+    """Dotted keys whose value is NaN or ±inf (they pass every schema bound)."""
+    if isinstance(obj, Mapping):
+        return [k for key, v in obj.items() for k in _non_finite(v, (*path, key))]
+    if isinstance(obj, list | tuple):
+        return [k for i, v in enumerate(obj) for k in _non_finite(v, (*path, i))]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return [f"'{_key(path)}' = {obj!r}"]
+    return []
+
+
+STUDY_CHECKS = {
+    "drum": "granpipe.drum.settings",
+    "column": "granpipe.column.layout",
+    "box": "granpipe.box.layout",
+}
+"""Modules whose ``check(section)`` makes the cross-key checks of a study's section (fit
+windows inside the recorded window, min ≤ max, selections inside the grid, ...)."""
+
+
 def validate(cfg: dict, schema_file: str | os.PathLike | None = None) -> dict:
     """Validate ``cfg`` in place against the schemas, filling defaults; return it.
 
-    Uses :func:`snakemake.utils.validate` (which fills schema defaults) after a
-    first pass that reports every violation with its dotted key path.
+    Refuses NaN and ±inf anywhere, then uses :func:`snakemake.utils.validate` (which
+    fills schema defaults) after a first pass that reports every violation with its
+    dotted key path, then each listed study's cross-key checks (:data:`STUDY_CHECKS`).
+    The Snakefile and ``granpipe check-config`` both call this.
 
     Raises
     ------
@@ -140,6 +164,9 @@ def validate(cfg: dict, schema_file: str | os.PathLike | None = None) -> dict:
     """
     if not isinstance(cfg, dict):
         raise ConfigError(f"a config must be a mapping of keys, got {type(cfg).__name__}")
+    bad = _non_finite(cfg)
+    if bad:
+        raise ConfigError("invalid configuration: not a finite number: " + ", ".join(bad))
     schema_file = Path(schema_file) if schema_file else schema_dir() / "config.schema.yaml"
     _check_with_jsonschema(cfg, schema_file)
     from snakemake.exceptions import WorkflowError
@@ -149,18 +176,56 @@ def validate(cfg: dict, schema_file: str | os.PathLike | None = None) -> dict:
         smk_validate(cfg, str(schema_file.resolve()), set_default=True)
     except WorkflowError as exc:  # pragma: no cover - the first pass catches these
         raise ConfigError(str(exc)) from exc
+    for study in cfg.get("studies", []):
+        if study in STUDY_CHECKS and study in cfg:
+            importlib.import_module(STUDY_CHECKS[study]).check(cfg[study])
     return cfg
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """A YAML loader that refuses a key given twice in one mapping, naming its line."""
+
+
+def _no_duplicates(loader, node, deep=False):
+    seen = {}
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            raise yaml.constructor.ConstructorError(
+                None, None,
+                f"duplicate key {key!r} (first on line {seen[key] + 1})",
+                key_node.start_mark,
+            )  # fmt: skip
+        seen[key] = key_node.start_mark.line
+    return loader.construct_mapping(node, deep=deep)
+
+
+_StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _no_duplicates)
+
+
+def read_yaml(path: str | os.PathLike):
+    """Read a YAML file strictly (no duplicate keys); errors name the file and line."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ConfigError(f"config file not found: {path}") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read config file {path}: {exc.strerror}") from None
+    try:
+        return yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f"{path}, line {mark.line + 1}, column {mark.column + 1}" if mark else str(path)
+        what = exc.problem or str(exc)
+        raise ConfigError(f"config file {where} is not valid YAML: {what}") from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"config file {path} is not valid YAML: {exc}") from None
 
 
 def load(path: str | os.PathLike) -> dict:
     """Read a YAML config file, validate it, fill defaults, and return it."""
-    path = Path(path)
-    try:
-        cfg = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise ConfigError(f"config file not found: {path}") from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"config file {path} is not valid YAML: {exc}") from None
+    cfg = read_yaml(path)
     if cfg is None:
         raise ConfigError(f"config file {path} is empty")
     return validate(cfg)

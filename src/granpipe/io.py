@@ -1,4 +1,4 @@
-"""netCDF in and out, with provenance and atomic writes (DESIGN.md, "Data conventions").
+"""netCDF in and out, provenance, atomic writes (docs/architecture.md, "Files and provenance").
 
 Every data variable and coordinate written by granpipe carries ``units`` and
 ``long_name``; every file carries global attributes naming the granpipe version,
@@ -73,7 +73,7 @@ def provenance_attrs(
     seeds: Sequence[int] | int | None = None,
     **extra,
 ) -> dict:
-    """Global attributes of DESIGN.md for a file computed from ``config_subset``.
+    """Global attributes (docs/architecture.md) for a file computed from ``config_subset``.
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Random streams per replica (DESIGN.md, "Seeds, batches and growing ensembles").
+"""Random streams per replica (docs/architecture.md, "Seeds, batches, growing ensembles").
 
 A replica's stream depends only on (study, physics-parameter hash, replica index),
 through :class:`numpy.random.SeedSequence`. Batches are fixed ranges of replica

@@ -1,4 +1,4 @@
-# box study (SPEC.md §3): stages init -> runs -> ensemble -> fits -> figures.
+# box study (docs/box.md): stages init -> runs -> ensemble -> fits -> figures.
 # Rules only call `granpipe box <stage>`; params carry the exact config subset each stage
 # depends on (granpipe.box.layout.*_params), so a config edit reruns exactly what it
 # touches: physics/init -> everything; protocol -> runs onwards (measured_periods only adds

@@ -1,4 +1,4 @@
-# column study (SPEC.md §2): runs -> ensemble -> fits -> figures (no init stage: the start is
+# column study (docs/column.md): runs -> ensemble -> fits -> figures (no init stage: the start is
 # the closed-form equilibrium of Eq. 27, perturbed per replica inside the runs).
 # Rules only call `granpipe column <stage>`; params carry the exact config subset each rule
 # depends on (granpipe.column.layout), so an edit reruns what it touches: a figure-1 column

@@ -1,11 +1,11 @@
 """Vibrated box: phase detection, granular temperature, slips and local order.
 
-Fortini & Huang (2015), Appendix B and Sec. V, with the corrections of SPEC §3:
+Fortini & Huang (2015), Appendix B and Sec. V, with the corrections of docs/box.md:
 
 * :func:`select_tracers` — the N_t particles of the row closest to mid-height of
   the bed at the start (the paper's horizontal line of tracers).
 * :func:`convection_measure` — s_c of Eqs. (B1)–(B2); convection when s_c > σ.
-* :func:`bouncing_measure` — s_b with SPEC's correction of Eq. (B4): s(k) of
+* :func:`bouncing_measure` — s_b with our correction, docs/box.md of Eq. (B4): s(k) of
   Eq. (B3), then s_b² = mean_k (s(k) − mean_k s)²; bouncing bed when s_b > σ/30.
 * :func:`bed_gap`, :func:`detachment_fraction` — the direct measure: fraction of
   the cycle during which the lowest grain is above the plate.
@@ -159,7 +159,7 @@ def bouncing_measure(z_tracers: np.ndarray, z_plate: np.ndarray) -> tuple[float,
     Returns
     -------
     s_b : float [σ]
-        s_b² = (1/N_k) Σ_k (s(k) − s̄)², s̄ = mean_k s(k). This is SPEC §3's
+        s_b² = (1/N_k) Σ_k (s(k) − s̄)², s̄ = mean_k s(k). This is docs/box.md's
         correction: Eq. (B4) as printed, (1/N_k) Σ_k s²(k), is the mean *square*
         height of the tracers above the plate (≈ (N_l σ/2)²) and always exceeds
         (σ/30)². A bed comoving with the plate has s(k) constant and s_b = 0.
@@ -193,7 +193,7 @@ def bed_gap(z: np.ndarray, z_plate: np.ndarray, sigma: float = 1.0) -> np.ndarra
 
 
 def detachment_fraction(gap: np.ndarray, tol: float = 1e-3) -> tuple[float, np.ndarray]:
-    """Fraction of the cycle with a gap under the bed (SPEC §3, hazard iii).
+    """Fraction of the cycle with a gap under the bed (docs/box.md, hazard iii).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Streaming reduction of replica batches to ensemble means (DESIGN.md, stage "ensemble").
+"""Streaming reduction of replica batches to ensemble means (docs/architecture.md, "Stages").
 
 Replicas arrive in batches shaped ``(replica, time)``; the ensemble mean, standard
 error of the mean and count at each time point are accumulated one batch at a

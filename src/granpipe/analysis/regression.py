@@ -3,7 +3,7 @@
 Fortini & Huang (2015), Sec. V: the reduced granular temperature
 T_g* = T_g/(mgσ) against K_m shows regions of different log–log slope — A, B for
 random starts (one break, at K_m ≈ 3.3), A1, A2, B for crystal starts (two
-breaks) — "found by segmented regression, not by eye" (SPEC §3); the slip
+breaks) — "found by segmented regression, not by eye" (docs/box.md); the slip
 probability follows p_s ∝ exp(−E_b/K_m) in each region (Fig. 5).
 
 Segmented regression

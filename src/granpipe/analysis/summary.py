@@ -1,4 +1,4 @@
-"""``summary.csv``: one row per fitted quantity, next to the paper's number (DESIGN.md).
+"""``summary.csv``: one row per fitted quantity, next to the paper's number (docs/architecture.md).
 
 Columns, in this order::
 

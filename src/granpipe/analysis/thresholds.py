@@ -2,7 +2,7 @@
 
 The box study runs a grid of Γ for each N_l and initial state and measures, at
 each point, s_b (bouncing bed when s_b > σ/30), s_c (convection when s_c > σ),
-or the detachment fraction (Fortini & Huang 2015, Appendix B; SPEC §3). The
+or the detachment fraction (Fortini & Huang 2015, Appendix B; docs/box.md). The
 threshold is where the measure crosses its criterion, linearly interpolated
 between the two bracketing grid points:
 
@@ -43,7 +43,7 @@ class Threshold:
     status : str, "crossed", "below_grid" or "above_grid"
     n_crossings : int
         Upward crossings along the grid; more than one means the measure is not
-        monotonic in Γ (e.g. s_b near Γ = 1, SPEC §3 hazard iii): check it.
+        monotonic in Γ (e.g. s_b near Γ = 1, docs/box.md hazard iii): check it.
     """
 
     value: float

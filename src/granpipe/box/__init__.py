@@ -1,4 +1,4 @@
-"""granpipe.box: the vibrated-box study (SPEC §3; Fortini & Huang 2015).
+"""granpipe.box: the vibrated-box study (docs/box.md; Fortini & Huang 2015).
 
 Modules, in the order of the protocol:
 
@@ -11,7 +11,7 @@ Modules, in the order of the protocol:
 * :mod:`~granpipe.box.protocol` — one run part: smooth start, transient, measured periods
   sampled at N_k phases (tracers, plate, gap, T_g), positions at every cycle start;
   exact continuation across parts.
-* :mod:`~granpipe.box.measures` — per point: s_c, s_b (SPEC's correction), detachment,
+* :mod:`~granpipe.box.measures` — per point: s_c, s_b (our correction, docs/box.md), detachment,
   T_g, p_s, ψ6 at measurement start, launch speeds.
 * :mod:`~granpipe.box.fitting` — thresholds in Γ, segmented T_g* regions, Arrhenius E_b,
   summary rows.

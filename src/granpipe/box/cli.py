@@ -1,4 +1,4 @@
-"""``granpipe box <stage>``: the vibrated-box study's stages (SPEC §3).
+"""``granpipe box <stage>``: the vibrated-box study's stages (docs/box.md).
 
 Each command takes ``--params JSON`` (the exact config subset its rule depends on, stored
 as the output's ``config_subset``) and input/output paths; progress goes to stderr. The

@@ -5,8 +5,9 @@ Glue between the per-point ensemble files and :mod:`granpipe.analysis.thresholds
 
 * :func:`points_table` — one row per point (N_l, Γ, init) with its measures.
 * :func:`thresholds` — per (N_l, init): Γ of bouncing (s_b > σ/30, Appendix B with
-  SPEC's correction), of detachment (the bed off the plate for more than the set
-  fraction of the cycle; SPEC §3 (iii)) and of convection (s_c > σ); linear interpolation
+  our correction, docs/box.md), of detachment (the bed off the plate for more than the set
+  fraction of the cycle; docs/box.md, hazard (iii)) and of convection (s_c > σ);
+  linear interpolation
   of log s between the bracketing grid points, which are reported.
 * :func:`temperature_fits` — per (N_l, init): continuous segmented regression of
   ln T_g* on ln K_m with ``breakpoints_random`` (A | B) or ``breakpoints_crystal``
@@ -211,7 +212,7 @@ def _fmt_q(name: str, init: str, n_l: int) -> str:
 def summary_rows(
     table: pd.DataFrame, ths: pd.DataFrame, tfits: Mapping, sfits: Mapping
 ) -> list[dict]:
-    """Rows of ``summary.csv`` (DESIGN columns); quantities name N_l and init."""
+    """Rows of ``summary.csv`` (docs/results.md); quantities name N_l and init."""
     rows = []
     for r in ths.itertuples(index=False):
         th = thresholds.Threshold(

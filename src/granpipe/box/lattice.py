@@ -5,7 +5,7 @@ at ``x = 0`` and ``x = Lx``.
 
 *Crystal* (orientation A of the paper's Fig. 2: close-packed rows horizontal). Rows are
 ``√3/2`` apart, neighbouring rows shifted by σ/2, the bottom row resting on the plate.
-Two fits in a box of width ``Lx`` (SPEC §3 hazard (ii)):
+Two fits in a box of width ``Lx`` (docs/box.md, hazard (ii)):
 
 ``spanning`` (20/19 in Lx = 20; the default)
     even rows hold ``floor(Lx)`` disks touching both walls exactly (at Lx = 20), odd

@@ -23,6 +23,7 @@ import re
 from collections.abc import Mapping
 
 __all__ = [
+    "check",
     "INITS",
     "gamma_text",
     "point_name",
@@ -57,6 +58,39 @@ __all__ = [
 ]
 
 INITS = ("crystal", "random")
+
+MAX_SIMULATION_JOBS = 10_000
+"""The most init + runs jobs a box config may ask for: Snakemake plans ~6 ms per job, so
+10,000 take about a minute (the paper scale asks for 1,010; see the drum's limit)."""
+
+
+def check(section: Mapping) -> None:
+    """Cross-key checks of a ``box`` section before any job runs (ConfigError names the
+    key): ``fits.N_l`` one of ``grid.N_l``, a transient at least as long as the ramp, and a
+    plan Snakemake can build."""
+    from ..errors import ConfigError
+
+    grid = section.get("grid", {})
+    n_ls = [int(n) for n in grid.get("N_l", [])]
+    want = section.get("fits", {}).get("N_l")
+    if want is not None and int(want) not in n_ls:
+        raise ConfigError(f"config key 'box.fits.N_l' = {want} is not in 'box.grid.N_l' = {n_ls}")
+    pr = section.get("protocol", {})
+    ramp, transient = pr.get("ramp_periods", 0.0), pr.get("transient_periods", 0)
+    if ramp > transient:
+        raise ConfigError(
+            f"config keys 'box.protocol.ramp_periods' = {ramp} and 'transient_periods' = "
+            f"{transient}: the ramp must end before the measurement starts"
+        )
+    jobs = len(points(section)) * len(replicas(section)) * (n_parts(section) + 1)
+    if jobs > MAX_SIMULATION_JOBS:
+        raise ConfigError(
+            f"config key 'box.grid': {jobs} simulation jobs, more than {MAX_SIMULATION_JOBS} "
+            "(Snakemake would take over a minute to plan them): raise "
+            "'box.protocol.periods_per_part'"
+            " or shrink the grid"
+        )
+
 
 POINT_RE = re.compile(r"^N_l=(\d+),Gamma=([0-9.eE+-]+),init=(crystal|random)$")
 

@@ -164,7 +164,7 @@ def point_dataset(
     s_c, s_b, frac = mean("s_c"), mean("s_b"), mean("detachment_fraction")
     units = {
         "s_c": ("sigma", "convection measure s_c (Eqs. B1-B2)"),
-        "s_b": ("sigma", "bouncing measure s_b (spread of s(k) over phases, SPEC §3)"),
+        "s_b": ("sigma", "bouncing measure s_b (spread of s(k) over phases, docs/box.md)"),
         "s_b_printed": ("sigma", "Eq. (B4) as printed: sqrt(mean_k s(k)^2)"),
         "detachment_fraction": ("1", "fraction of the cycle with a gap under the bed"),
         "max_gap": ("sigma", "mean over cycles of the largest gap under the bed"),

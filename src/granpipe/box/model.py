@@ -1,4 +1,4 @@
-"""The box model of SPEC §3 / Appendix A in numbers: contact law, time step, drive.
+"""The box model of docs/box.md / Appendix A in numbers: contact law, time step, drive.
 
 Reduced units throughout: σ = m = g = 1, t0 = sqrt(σ/g). Every disk has diameter 1,
 mass 1 and moment of inertia I = mσ²/8; the box has flat walls at ``x = 0``, ``x = Lx``

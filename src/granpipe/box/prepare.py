@@ -1,4 +1,4 @@
-"""Initial states of the box study (paper Sec. III; SPEC §3 "Initial states").
+"""Initial states of the box study (paper Sec. III; docs/box.md "Initial states").
 
 Both preparations run with the plate at rest at ``z = 0`` between side walls at ``x = 0``
 and ``x = Lx`` under the full contact law of Appendix A (:mod:`granpipe.box.model`) and
@@ -186,7 +186,7 @@ def prepare(
 
 def bulk_psi6(positions: np.ndarray, lx: float, r_max: float = 1.2, depth: float = 2.0) -> float:
     """Mean |ψ6| of disks more than ``depth`` σ from the side walls, the plate and the free
-    surface (the crystal check of SPEC §3 hazard (ii)); NaN if none qualifies."""
+    surface (the crystal check of docs/box.md, hazard (ii)); NaN if none qualifies."""
     from ..analysis import box as ab
 
     pos = np.asarray(positions, dtype=np.float64)

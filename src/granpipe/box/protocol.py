@@ -1,4 +1,4 @@
-"""The vibrated-box protocol of one parameter point (SPEC §3 "Drive", Appendix B).
+"""The vibrated-box protocol of one parameter point (docs/box.md "Drive", Appendix B).
 
 One run of a point ``(N_l, Γ, init)`` and replica, in order:
 
@@ -6,7 +6,7 @@ One run of a point ``(N_l, Γ, init)`` and replica, in order:
    at ``z = 0``, time ``t = 0``. Shear histories of the settled packing are not carried
    into the run (the drive starts from positions, velocities and spins).
 2. Drive the plate, ``z_b(t) = z0 + A r(t) sin(ωt + φ)`` with ``A = Γ g/ω²``
-   (:func:`granpipe.box.model.drive_for`). Smooth start (SPEC §3 hazard (i)): with
+   (:func:`granpipe.box.model.drive_for`). Smooth start (docs/box.md, hazard (i)): with
    ``start_phase = sine`` and a ramp ``r(t) = min(t/t_ramp, 1)`` the plate velocity is
    continuous (zero) at ``t = 0`` and grows linearly; with ``start_phase = bottom``
    (``φ = -π/2``) the plate starts at rest at its lowest point.

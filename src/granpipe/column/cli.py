@@ -1,4 +1,4 @@
-"""``granpipe column <stage>``: the column study's workflow stages (DESIGN.md).
+"""``granpipe column <stage>``: the column study's workflow stages (docs/architecture.md).
 
 Stage map (outputs under ``results/<scale>/column/``):
 
@@ -25,7 +25,9 @@ import click
 
 from ..cli import params_option
 
-cli = click.Group("column", help="Tapped column of particles (SPEC §2): stages of the study.")
+cli = click.Group(
+    "column", help="Tapped column of particles (docs/column.md): stages of the study."
+)
 
 
 def _log(msg):
@@ -69,7 +71,8 @@ def relaxation_cmd(params, batch, out):
     from .study import relaxation_batch
 
     t0 = time.time()
-    # a batch is always full, so that n_replicas only adds batches (DESIGN, "Seeds")
+    # a batch is always full, so that n_replicas only adds batches (docs/architecture.md,
+    # "Seeds, batches, growing ensembles")
     reps = list(batch_replicas(batch, int(params["batch_size"])))
     _log(f"relaxation batch {batch}: replicas {reps}, {params['n_taps']} taps")
     ds, seeds = relaxation_batch(

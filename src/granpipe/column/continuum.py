@@ -13,7 +13,7 @@ height of the material point labelled z. Eq. (35) with σ = tanh(α·), α = 1/h
                                   + (1/6) e α A₊ y_zz y_tzz ) ]
 
 with A₊ = 2.5, A₋ = 6.5, B = −1/h (Eq. 38 evaluated; the text's A₋ = 13.5 contradicts it,
-and Eq. 37 flips the overall sign — SPEC §2). We use (35)'s sign.
+and Eq. 37 flips the overall sign — docs/column.md). We use (35)'s sign.
 
 *Why a regularization.* Linearized about the undeformed column (y_z = 1), Eq. (35) gives
 ω² = c²k²(1 − γ h² k²) with c² = (K h²/m) C(1), C(p) = A₊/3 − (h B/3) p + 2 r α h² p², and
@@ -37,7 +37,7 @@ BSR model. Eulerian height z ∈ [0, Z]; velocity u(z, t) (Eq. 45):
     u_t + u u_z = −g − (K/m) ∫_{−h}^{h} Θ(y, z) [1 − e σ(u(z + y) − u(z))] (2r − |y|) dy,
     Θ(y, z) = exp(−((z + y) − b)² / (2 c²)) / (c √(2π)),   b = 7h, c = 3h,
 
-(Eq. 44 normalizes with b where c is meant — SPEC §2), u(z, 0) = 0, u(0, t) = ẏ0(t). Finite
+(Eq. 44 normalizes with b where c is meant — docs/column.md), u(z, 0) = 0, u(0, t) = ẏ0(t). Finite
 volumes: Godunov flux for Burgers with minmod MUSCL, SSP-RK3, CFL 0.4; the kernel integral
 by the trapezoid rule on the grid (h/Δz must be an integer), exact σ (σ(0) = 0 sits at the
 node y = 0, where the integrand jumps, so the rule stays second order). Density from

@@ -1,6 +1,6 @@
 """The discrete tapped column: Eq. (19) with the tap drive of Eqs. (2)–(3), and its tangent.
 
-Physics (paper Eqs. 4–19, monodisperse, SPEC §2). Particle i (0-based here) at height
+Physics (paper Eqs. 4–19, monodisperse, docs/column.md). Particle i (0-based here) at height
 y_i, velocity v_i; contact j sits below particle j: contact 0 between the floor y0(t) and
 particle 0, contact j ≥ 1 between particles j−1 and j. Its compression and separation rate
 are::
@@ -1110,7 +1110,7 @@ def smooth_equilibrium(p) -> np.ndarray:
 
 
 def initial_state(p, perturbation=None) -> ColumnState:
-    """The equilibrium start at rest (SPEC §2), all contacts stuck; optional δy added.
+    """The equilibrium start at rest (docs/column.md), all contacts stuck; optional δy added.
 
     Parameters
     ----------

@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 __all__ = [
+    "check",
     "FIGURES",
     "step_factor",
     "units",
@@ -30,6 +31,33 @@ FIGURES = (
     "fig5_continuum_convergence",
     "fig6_lyapunov_estimates",
 )
+
+
+def check(cfg: Mapping) -> None:
+    """Cross-key checks of a ``column`` section before any job runs (ConfigError names
+    the key): the BSR cell must divide the particle diameter h = 2r, and each refinement
+    of the convergence study must be a multiple of the one before, so that the coarse
+    nodes lie on every finer grid."""
+    from ..errors import ConfigError
+
+    cont = cfg.get("continuum", {})
+    phys = cont.get("physics", {})
+    if "r" in phys and "bsr_dz" in cont:
+        ratio = 2.0 * float(phys["r"]) / float(cont["bsr_dz"])
+        if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
+            raise ConfigError(
+                f"config key 'column.continuum.bsr_dz' = {cont['bsr_dz']} does not divide the "
+                f"particle diameter h = 2r = {2.0 * float(phys['r'])}"
+            )
+    conv = cont.get("convergence", {})
+    for key in ("lw_refinements", "bsr_refinements"):
+        ks = [int(k) for k in conv.get(key, [])]
+        for a, b in zip(ks[:-1], ks[1:], strict=False):
+            if b <= a or b % a:
+                raise ConfigError(
+                    f"config key 'column.continuum.convergence.{key}' = {ks}: each entry must "
+                    "be a multiple of the one before (nested grids)"
+                )
 
 
 def step_factor(cfg: Mapping) -> float:

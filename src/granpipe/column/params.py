@@ -1,4 +1,4 @@
-"""Parameters of the tapped column (SPEC §2; paper Eqs. 2–3, 16–19, 27–30).
+"""Parameters of the tapped column (docs/column.md; paper Eqs. 2–3, 16–19, 27–30).
 
 A :class:`ColumnParams` holds one monodisperse column: ``N`` particles of mass ``m`` and
 radius ``r`` on a vertical line, gravity ``g``, Walton–Braun–Mindlin stiffness ``K`` with
@@ -209,7 +209,7 @@ def e_from_restitution(rho: float) -> float:
     return (1.0 - rho * rho) / (1.0 + rho * rho)
 
 
-# The paper's two parameter sets (SPEC §2). Figure 1 in cgs units (cm, g, s): r = 1 cm,
+# The paper's two parameter sets (docs/column.md). Figure 1 in cgs units (cm, g, s): r = 1 cm,
 # g = 980.67 cm/s², m = 1, K = 2Ng/r, e = 0.09, a/2r = 0.53, ω = 2πΓ.
 # The paper's "T = 50" has no unit. Read as seconds, four taps of 0.13–0.21 s would span
 # 200 s of rest; read as 50 of the paper's time steps of 0.01 s (Section 7), T = 0.5 s,
@@ -256,7 +256,7 @@ def parameter_set(name: str, **overrides) -> ColumnParams:
 def equilibrium_positions(p: ColumnParams) -> np.ndarray:
     """Rest positions y_k(0) of the column in equilibrium on the floor at y0 = 0.
 
-    y_k(0) = (2k − 1) r − (k/2)(2N − k + 1) 𝔐 for every k = 1..N (SPEC §2: the paper's
+    y_k(0) = (2k − 1) r − (k/2)(2N − k + 1) 𝔐 for every k = 1..N (docs/column.md: the paper's
     separate formula for y_N in Eq. (27) is wrong; this is the k = N case of the general
     one). The compressions are c_k = (N − k)𝔐 between particles k and k+1 and N𝔐 at the
     floor, so that K c balances the weight above each contact (σ(0) = 0, Eq. 9).

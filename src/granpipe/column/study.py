@@ -1,4 +1,4 @@
-"""The column study, step by step (SPEC §2): what each workflow stage computes.
+"""The column study, step by step (docs/column.md): what each workflow stage computes.
 
 1. Trajectories y_i(t) of the figure-1 columns over four taps (paper Fig. 1).
 2. Density relaxation: column height and mean linear density at 0.99T, 1.99T, … over

@@ -1,4 +1,4 @@
-"""granpipe.drum: the rotating-drum study (SPEC §1; Maghsoodi & Luijten 2016).
+"""granpipe.drum: the rotating-drum study (docs/drum.md; Maghsoodi & Luijten 2016).
 
 In protocol order:
 

@@ -1,4 +1,4 @@
-"""Drum analysis glue: batches → ensemble → fitted times (SPEC §1 "Analysis").
+"""Drum analysis glue: batches → ensemble → fitted times (docs/drum.md, "Analysis").
 
 The generic pieces live in :mod:`granpipe.analysis` (streaming reduction,
 moving average and low-pass, windowed fits, bootstrap); this module wires them
@@ -6,7 +6,8 @@ to the drum's run files and the paper's definitions (Maghsoodi & Luijten 2016,
 Sec. III):
 
 * onset time t_on = vertex of a quadratic fit of the ensemble-mean V(t) on
-  1–4 s after t = 0 (the V minimum);
+  1–4 s after t = 0, accepted only as a minimum (positive curvature, vertex
+  inside the window; otherwise NaN with a note);
 * sign-change times = zeros of linear fits of the ensemble-mean λ(t) on 10–20 s
   (onset window) and 7–9 s (decay window);
 * lags = onset sign change − t_on, and decay sign change − t_stop (the drum is
@@ -14,15 +15,19 @@ Sec. III):
   definition);
 * λ̄ (Eq. 2, 0.5 s moving average) and the FFT low-pass (lowest 0.008 % of the
   per-step frequencies: f ≤ 8e-5 · 1/(2Δt) = 1 Hz) and their zero crossings
-  as cross-checks.
+  as cross-checks; the start-up decay of V right after t = 0.
 
 Every fitted time has a fit error (delta method) and a percentile bootstrap
 interval over replicas (``bootstrap_unit: replica``) or over batch means
 (``batch``, paper scale). The *automatic* windows keep the widths of the
-configured ones but are centred on the full-ensemble minimum of the smoothed
-V(t) (onset time) and on the first zero crossing of λ̄ (sign changes; these are
-re-centred in every bootstrap resample, so the interval includes the window
-choice), because our timing need not match the paper's.
+configured ones, because our timing need not match the paper's: the onset window
+is centred on the smallest smoothed V within ``vertex_search_s`` (the minimum that
+follows the start-up decay), the sign-change windows on the zero of a linear fit of
+λ over the whole range after the V minimum (onset) or the stop (decay). Every
+bootstrap resample re-centres its own windows, so the interval includes the window
+choice. The automatic onset lag refers to the sign change in the paper's window:
+the automatic mode moves the onset to where our minimum is, and its sign-change
+window is a cross-check with its own row.
 """
 
 from __future__ import annotations
@@ -394,20 +399,24 @@ def _onset_analysis(t, ens, units, cfg, q, *, auto, suffix):
     curv = _curvature(change, suffix, n)
     zwin = _auto_zero_window(t, mL, search, half_width, +1) if auto else zcfg
     sign = _sign_change(t, mL, zwin, sL, f"onset_sign_change_time{suffix}", n, auto)
-    lag_ = lag(sign, change, quantity=f"onset_lag{suffix}")
+    # the lag refers to the sign change in the paper's window in both modes: the automatic
+    # mode moves the onset to where our V minimum is; its sign-change window is a check
+    fixed = sign if not auto else _sign_change(t, mL, zcfg, sL, "", n, False)
+    lag_ = lag(fixed, change, quantity=f"onset_lag{suffix}")
     v_ref, z_ref = change.t_ref, sign.t_ref
 
     def statistic(mv, ml):
         lo, hi = _onset_window(t, mv, q, cfg, auto)
         v, _, c2, _, _, _ = minimum_times(t, mv, (lo, hi), sV, t_ref=v_ref)
+        zf, _, _ = zero_crossing_times(t, ml, zcfg, sL, t_ref=fixed.t_ref)
         if auto:
             start = argmin_time(t, mv, tuple(cfg["vertex_search_s"]), q)
             start = np.where(np.isfinite(start), start, float(t[0]))
             win = _auto_zero_window(t, ml, (start, float(t[-1])), half_width, +1)
+            z, _, _ = zero_crossing_times(t, ml, win, sL, t_ref=z_ref)
         else:
-            win = zcfg
-        z, _, _ = zero_crossing_times(t, ml, win, sL, t_ref=z_ref)
-        return np.stack([v, c2, z, z - v], axis=-1)
+            z = zf
+        return np.stack([v, c2, z, zf - v], axis=-1)
 
     out = {"change": change, "curvature": curv, "sign": sign, "lag": lag_}
     if int(cfg["bootstrap_resamples"]) > 0:

@@ -76,9 +76,9 @@ def rule_params(section: Mapping) -> dict[str, dict]:
     "summary": ...}``: a simulation depends on its point's physics, settle (settled
     start-up only), protocol and batch size; the ensemble on ``exclude_flagged``; the
     fits on that and ``fits`` (and its point's label, for the row names); the figures on
-    ``figures`` and the list of points (name, period, start-up, label; the reference
-    first: a list, because the JSON of the params has sorted keys). Editing the physics of one point, or adding a point, changes no other
-    point's subsets.
+    ``figures`` and the list of points (name, period, start-up, label; the reference first:
+    a list, because the JSON of the params has sorted keys). Editing the physics of one
+    point, or adding a point, changes no other point's subsets.
     """
     sec = filled(section)
     sim, fits, table = {}, {}, []

@@ -1,4 +1,4 @@
-"""granpipe.engine: a small, jitted 2D DEM engine (SPEC §1 and §3; DESIGN "Engine principles").
+"""granpipe.engine: a small, jitted 2D DEM engine (docs/architecture.md, "The engine").
 
 Disks in the plane (second coordinate vertical), struct-of-arrays float64, velocity
 Verlet with gravity, cell lists feeding Verlet lists with a skin, two contact laws
@@ -80,7 +80,7 @@ Conventions
 
 Worked example
 --------------
-Two disks on a collision course, then the drum of SPEC §1 in miniature::
+Two disks on a collision course, then the drum of docs/drum.md in miniature::
 
     import numpy as np
     from granpipe.engine import DrumLaw, Simulation, WallDisks

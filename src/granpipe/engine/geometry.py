@@ -1,6 +1,6 @@
 """Small geometric builders: a ring of wall disks, random non-overlapping disks, a lattice.
 
-Generic shapes only; the studies choose sizes and counts (SPEC §1, §3).
+Generic shapes only; the studies choose sizes and counts (docs/drum.md, docs/box.md).
 """
 
 from __future__ import annotations

@@ -7,12 +7,12 @@ vectors for tests and studies. The pair loops in :mod:`granpipe.engine.kernels`
 lift the leaves over neighbour pairs and walls (a wall is the j side with infinite
 mass; a flat wall is the limit of infinite radius, curvature ``1/r = 0``).
 
-Drum law (SPEC §1; drum paper Eq. 1)
+Drum law (docs/drum.md; drum paper Eq. 1)
     ``f = f_n n - min(gamma_t |u|, mu max(f_n, 0)) sign(u) t``,
     ``f_n = -k_n delta - gamma_n v_n`` with ``delta = r - (a_i + a_j) <= 0``,
     ``v_n = v_ij . n``, ``u = v_ij . t``. No spin; damping not scaled by mass.
 
-Box law (SPEC §3; box paper Eqs. A1-A5)
+Box law (docs/box.md; box paper Eqs. A1-A5)
     ``F = (kappa_n xi_n - gamma_n m_eff v_n) n + f_t t``, ``xi_n = a_i + a_j - r``,
     ``f_t = -kappa_t xi - gamma_t m_eff v_t`` truncated at ``|f_t| <= mu |F_n|``,
     with the elastic shear displacement ``xi`` (a scalar along ``t``, so it turns
@@ -24,7 +24,7 @@ Box law (SPEC §3; box paper Eqs. A1-A5)
 
     Lever arms: the contact point sits at the middle of the overlap
     (``l_i = a_i - xi_n/2 = (r + a_i - a_j)/2``, MercuryDPM's convention) rather
-    than at ``a_i = sigma_i/2`` as SPEC §3 writes. The two differ by
+    than at ``a_i = sigma_i/2`` (LAMMPS; docs/box.md). The two differ by
     ``xi_n/2 ~ 1e-4 sigma`` at the box's stiffness, but only the mid-overlap arms
     make ``l_i + l_j = r``, so that each contact exerts no net torque and angular
     momentum is conserved to round-off (an engine requirement).
@@ -307,7 +307,7 @@ def _positive(name, value, allow_zero=True):
 
 @dataclass(frozen=True)
 class DrumLaw:
-    """Linear spring-dashpot with viscous friction capped at Coulomb (SPEC §1).
+    """Linear spring-dashpot with viscous friction capped at Coulomb (docs/drum.md).
 
     Parameters
     ----------
@@ -409,7 +409,7 @@ class DrumLaw:
 
 @dataclass(frozen=True)
 class BoxLaw:
-    """Linear spring-dashpot with tangential spring and Coulomb truncation (SPEC §3).
+    """Linear spring-dashpot with tangential spring and Coulomb truncation (docs/box.md).
 
     Parameters
     ----------

@@ -7,7 +7,7 @@ four subtractions and four stores per pair. :func:`gather4` takes four listed pa
 once: per pair and field (positions, velocities) one two-wide load from each disk's
 ``(x, y)`` in the flat ``2N`` row and one subtraction, the lanes combined in registers
 and stored as row vectors. On the drum pile (Intel core of docs/engine_performance.md,
-session 5) it takes 1.8 ns per pair, against 4.3 for one four-wide subtraction per pair
+round 5) it takes 1.8 ns per pair, against 4.3 for one four-wide subtraction per pair
 from copied per-disk records ``[x, y, vx, vy]`` with lane stores, and 2.9 for those
 records with four pairs' differences transposed in registers (the copy into the
 records cost more than the loads it saved). Lane by lane the arithmetic is the IEEE

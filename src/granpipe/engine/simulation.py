@@ -367,7 +367,7 @@ def _aligned(storage: dict) -> dict:
 
     numpy promises 16 bytes, and a run's speed then depended on where ``malloc`` put its
     arrays: 16 bytes off a line cost 8-9 % of a step (drum forward and tangent, box
-    crystal) on the Intel core of docs/engine_performance.md (session 5). The vector
+    crystal) on the Intel core of docs/engine_performance.md (round 5). The vector
     loads and stores of the pair rows (four doubles from an index that is a multiple of
     4) never split a line when the rows start on one.
     """

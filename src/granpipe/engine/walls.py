@@ -1,18 +1,18 @@
 """Walls with prescribed motion: rotating wall disks (drum) and flat lines (box).
 
 Walls act on disks through the same contact law as disk pairs, with infinite mass
-on the wall side (SPEC §1, §3; DESIGN "Engine principles").
+on the wall side (docs/drum.md, docs/box.md; docs/architecture.md, "The engine").
 
 * :class:`WallDisks` — the disks flagged ``is_wall`` form one rigid body turning
   about ``centre`` at angular velocity ``omega`` (counter-clockwise positive; the
-  drum of SPEC §1 turns clockwise, ``omega = -2.4417e-4``), which switches
+  drum of docs/drum.md turns clockwise, ``omega = -2.4417e-4``), which switches
   abruptly to ``omega_after`` at ``t_switch`` (the drum stop). The rotation angle
   is part of the state, so the motion can be redefined between chunks of a run
   without a jump.
 * :class:`FlatWalls` — vertical lines ``x = x_left`` and ``x = x_right`` and a
   horizontal bottom at ``y = z_b(t) = z0 + A r(t) sin(omega t + phase)``, with an
   optional linear amplitude ramp ``r(t) = clip((t - ramp_start)/ramp_time, 0, 1)``
-  (SPEC §3 hazard (i): start smoothly with a phase offset, e.g. ``phase = -pi/2``
+  (docs/box.md, hazard (i): start smoothly with a phase offset, e.g. ``phase = -pi/2``
   starts at the bottom turning point, and/or a ramp). The vertical axis is the
   second coordinate; the box paper's ``z`` is our ``y``.
 
