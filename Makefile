@@ -1,12 +1,15 @@
-# Two commands on a fresh machine (Python 3.11, pip, make):
+# Two commands on a fresh machine (Python 3.11, 3.12 or 3.13, pip, make):
 #   make reproduce   # .venv + pinned deps + snakemake --cores 2 at the default scale
 #   make test        # .venv + pinned deps + the test suite
 # Both reuse the environment (and numba's on-disk cache) on a second call.
 
-PYTHON ?= $(shell command -v python3.11 || command -v python3)
-VENV := .venv
+# The first of python3.11, python3.12, python3.13, python3 found; `make test PYTHON=python3.13`
+# picks one (a .venv of another version is rebuilt).
+PYTHON ?= $(shell command -v python3.11 || command -v python3.12 || command -v python3.13 || command -v python3)
+PYVER := $(shell $(PYTHON) -c 'import sys; print("%d.%d" % sys.version_info[:2])' 2>/dev/null)
+VENV ?= .venv
 BIN := $(VENV)/bin
-STAMP := $(VENV)/.granpipe-installed
+STAMP := $(VENV)/.granpipe-installed-$(PYVER)
 CORES ?= 2
 # Test selection: everything (physics validations and the real-SLURM test included).
 PYTEST_ARGS ?=
@@ -21,7 +24,9 @@ export PATH := $(CURDIR)/$(BIN):$(PATH)
 .PHONY: env reproduce test lint bench bench-reference quick report clean-results
 
 $(STAMP): pyproject.toml constraints.txt
-	@$(PYTHON) -c 'import sys; assert sys.version_info[:2] == (3, 11), "granpipe needs Python 3.11, found " + sys.version' 
+	@$(PYTHON) -c 'import sys; v = sys.version_info[:2]; assert (3, 11) <= v <= (3, 13), "granpipe needs Python 3.11-3.13, found " + sys.version'
+	@if [ -x $(BIN)/python ] && [ "$$($(BIN)/python -c 'import sys; print("%d.%d" % sys.version_info[:2])')" != "$(PYVER)" ]; then \
+		echo "$(VENV) holds another Python: rebuilding it with $(PYVER)"; rm -rf $(VENV); fi
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade "pip>=24"
 	$(BIN)/python -m pip install --quiet -c constraints.txt -e ".[test]"

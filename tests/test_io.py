@@ -97,3 +97,53 @@ def test_git_commit_is_reported():
         assert io.git_commit() == "abc"
     finally:
         del os.environ["GRANPIPE_GIT_COMMIT"]
+
+
+def test_a_killed_attempts_temporary_file_goes_with_the_next_write(tmp_path):
+    stale = tmp_path / ".batch_0000.nc.abc123.tmp"
+    other = tmp_path / ".batch_0001.nc.abc123.tmp"  # another file's: left alone
+    stale.write_bytes(b"partial")
+    other.write_bytes(b"partial")
+    io.write_dataset(labelled(), tmp_path / "batch_0000.nc")
+    assert not stale.exists() and other.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [other.name, "batch_0000.nc"]
+
+
+def _run_file(path, batch, replicas, cfg):
+    ds = labelled().assign_coords(
+        replica=("replica", replicas, {"units": "1", "long_name": "replica"})
+    )
+    return io.write_dataset(ds, path, config_subset=cfg, study="drum", stage="runs",
+                            batch=batch)  # fmt: skip
+
+
+def test_run_files_that_do_not_belong_together_are_refused_naming_the_file(tmp_path):
+    cfg = {"physics": {"dt": 1e-3}}
+    a = _run_file(tmp_path / "batch_0000.nc", 0, [0, 1], cfg)
+    b = _run_file(tmp_path / "batch_0001.nc", 1, [2, 3], cfg)
+    info = io.check_run_files([a, b], study="drum")
+    assert [i["replicas"] for i in info] == [[0, 1], [2, 3]]
+    # batch 1 copied over batch 0: the name and the content disagree
+    copied = tmp_path / "copy" / "batch_0000.nc"
+    copied.parent.mkdir()
+    copied.write_bytes(b.read_bytes())
+    with pytest.raises(io.RunFileError, match=r"batch_0000\.nc holds batch 1"):
+        io.check_run_files([copied, b], study="drum")
+    # the same replicas twice under other names
+    twice = tmp_path / "twice.nc"
+    twice.write_bytes(b.read_bytes())
+    with pytest.raises(io.RunFileError, match=r"replica 2 appears twice.*twice\.nc"):
+        io.check_run_files([a, b, twice], study="drum")
+    # another point's physics
+    c = _run_file(tmp_path / "other" / "batch_0002.nc", 2, [4, 5], {"physics": {"dt": 2e-3}})
+    with pytest.raises(io.RunFileError, match=r"batch_0002\.nc was computed with another"):
+        io.check_run_files([a, c], study="drum")
+    # not a runs file, and not a netCDF file at all
+    with pytest.raises(io.RunFileError, match="not a box runs file"):
+        io.check_run_files([a], study="box")
+    junk = tmp_path / "batch_0003.nc"
+    junk.write_text("not netCDF")
+    with pytest.raises(io.RunFileError, match=r"cannot read .*batch_0003\.nc"):
+        io.check_run_files([a, junk], study="drum")
+    with pytest.raises(io.RunFileError, match=r"cannot read .*batch_0003\.nc"):
+        io.read_dataset(junk)

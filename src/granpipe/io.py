@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import glob
 import os
 import subprocess
 import tempfile
@@ -36,6 +37,7 @@ __all__ = [
     "write_text",
     "config_from_attrs",
     "check_run_files",
+    "RunFileError",
 ]
 
 _ENGINE = "netcdf4"
@@ -139,10 +141,15 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path in the target's folder; rename it onto ``path`` on success.
 
     On any exception (or if the process dies) the final name is never created or
-    touched; the temporary file is removed where possible.
+    touched; the temporary file is removed where possible, and one left by a killed
+    earlier attempt at the same path is removed when the next attempt starts.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    # temporary files of an earlier attempt at this same file that was killed (SIGKILL
+    # skips the cleanup below); the workflow never writes one file from two jobs at once
+    for stale in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):
+        stale.unlink(missing_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
     tmp = Path(tmp)

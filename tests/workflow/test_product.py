@@ -313,6 +313,41 @@ def test_sigkill_mid_write_leaves_nothing_and_rerun_is_identical(quick):
     assert data_bytes(target) == reference
 
 
+def test_killed_forcerun_resumes_with_a_plain_rerun(quick):
+    """A --forcerun of the drum runs removes their files; SIGKILL it while the first job
+    writes, and after --unlock (Snakemake's own lock survives a SIGKILL) a plain rerun
+    recomputes every missing run file, byte-identical, and leaves no temporary file."""
+    workdir, base = quick
+    if "drum" not in studies(base):
+        pytest.skip("the drum study is not part of this scale")
+    root = workdir / "results" / "quick" / "drum"
+    runs = sorted(root.glob(KNOBS["drum"].batch_glob))
+    reference = {p: data_bytes(p) for p in runs}
+    proc = subprocess.Popen(
+        [SNAKEMAKE, "--cores", "1", "--configfile", "config/scratch.yaml",
+         "--forcerun", "drum_runs"],
+        cwd=workdir, env={**snakemake_env(), "GRANPIPE_FAULT_DELAY_RENAME": "30"},
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+    )  # fmt: skip
+    deadline = time.monotonic() + 600
+    while time.monotonic() < deadline and proc.poll() is None:
+        if any(root.rglob("runs/*/.batch_*.tmp")):
+            break
+        time.sleep(0.01)
+    assert any(root.rglob("runs/*/.batch_*.tmp")), "no run file was being written"
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    missing = [p for p in runs if not p.exists()]
+    assert missing, "the forced run removed no file before it was killed"
+    run_snakemake("--unlock", "--configfile", "config/scratch.yaml", cwd=workdir)
+    run_snakemake("--cores", "2", "--configfile", "config/scratch.yaml", cwd=workdir,
+                  timeout=900)  # fmt: skip
+    for p, data in reference.items():
+        assert data_bytes(p) == data, p
+    assert not list(root.rglob(".*.tmp")), "a stale temporary file was left behind"
+    assert planned_jobs(workdir, "config/scratch.yaml") == {}
+
+
 def test_second_workflow_on_same_directory_is_refused(quick):
     """While one run recomputes a batch, a second run on the same directory is refused
     by Snakemake's lock; the forced recomputation reproduces the batch's data bytes."""

@@ -178,10 +178,12 @@ if "box" in config:
             "granpipe box figures --params {params.json:q} --fits-dir {params.fitsdir:q}"
             " --out-dir {params.outdir:q} {params.inits} {input.ensemble:q} > {log:q} 2>&1"
 
+    # run files are targets too: a plain rerun recomputes any that a killed job removed
     register_targets(
         "box",
         lambda: [
             *rules.box_figures.output,
             out("box", "fits", "summary.csv"),
+            *[out("box", f) for f in box_layout.run_files(BOX)],
         ],
     )

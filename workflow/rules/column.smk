@@ -241,11 +241,13 @@ rule column_figures:
 
 
 if COLUMN_ON:
+    # run files are targets too: a plain rerun recomputes any that a killed job removed
     register_targets(
         "column",
         lambda: [
             *rules.column_figures.output,
             rules.column_fits.output.summary,
             rules.column_fits.output.note,
+            *[out("column", f) for f in column_layout.run_files(COLUMN)],
         ],
     )

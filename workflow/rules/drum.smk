@@ -196,10 +196,13 @@ rule drum_figures:
         " > {log:q} 2>&1"
 
 
+# The run files are targets too: after a killed job (or a killed --forcerun, which removes
+# them first) a plain rerun recomputes the missing ones, and everything after them.
 register_targets(
     "drum",
     lambda: [
         *rules.drum_figures.output,
         rules.drum_summary.output[0],
+        *[f for p in DRUM_POINTS for f in drum_runs_of(p)],
     ],
 )
