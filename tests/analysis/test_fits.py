@@ -174,3 +174,18 @@ def test_minimum_refuses_a_maximum_and_a_vertex_outside_the_window():
     assert np.isnan(refused.value) and "maximum" in refused.note
     plain = vertex_time(t, down, (1.0, 4.0))
     assert plain.value == pytest.approx(2.6, abs=0.05) and plain.note == ""
+
+
+def test_first_crossing_with_hold_skips_noise_crossings():
+    """A line through zero at t = 4 with a dip below zero after an early noise crossing at
+    t = 1: without hold the first upward crossing is the noise one, with a hold of 0.5 the
+    lasting one."""
+    t = np.arange(0.0, 8.0, 0.01)
+    y = 0.1 * (t - 4.0)
+    y[(t > 1.0) & (t < 1.2)] = 0.05  # a brief excursion above zero
+    assert first_crossing(t, y, (0.0, 8.0), +1) == pytest.approx(1.0, abs=0.011)
+    assert first_crossing(t, y, (0.0, 8.0), +1, hold=50) == pytest.approx(4.0, abs=1e-9)
+    # vectorised over series, and NaN when no crossing lasts
+    Y = np.stack([y, -np.abs(y) - 0.01])
+    got = first_crossing(t, Y, (0.0, 8.0), +1, hold=50)
+    assert got[0] == pytest.approx(4.0) and np.isnan(got[1])

@@ -340,7 +340,7 @@ def zero_crossing_times(t, Y, window, sigma=None, *, t_ref=None, error_scale="au
 
 
 # -------------------------------------------------------------- auto windows
-def first_crossing(t, Y, search=None, direction: int = 0) -> np.ndarray:
+def first_crossing(t, Y, search=None, direction: int = 0, hold: int = 0) -> np.ndarray:
     """Time of the first zero crossing of each series in ``search``, vectorised.
 
     Parameters
@@ -348,6 +348,10 @@ def first_crossing(t, Y, search=None, direction: int = 0) -> np.ndarray:
     t : (T,) ; Y : (..., T), e.g. λ̄ (NaN samples never bracket a crossing)
     search : (t_lo, t_hi), optional; each bound a float or an array (..., 1)
     direction : +1 (− to +), −1 (+ to −) or 0 (either)
+    hold : int
+        Count a crossing only if the series keeps its new sign (and stays finite) over
+        the next ``hold`` samples, all inside the search range: a noisy curve crosses
+        zero many times before it changes sign for good.
 
     Returns (...,) the linearly interpolated crossing time, NaN if none.
     """
@@ -357,14 +361,32 @@ def first_crossing(t, Y, search=None, direction: int = 0) -> np.ndarray:
         inside = np.ones_like(t, dtype=bool)
     else:  # bounds may be arrays (..., 1), one search range per series
         inside = (t >= np.asarray(search[0])) & (t <= np.asarray(search[1]))
+    inside = np.broadcast_to(inside, Y.shape)
     y0, y1 = Y[..., :-1], Y[..., 1:]
     ok = inside[..., :-1] & inside[..., 1:] & np.isfinite(y0) & np.isfinite(y1)
+    up = (y0 < 0) & (y1 >= 0)
+    down = (y0 > 0) & (y1 <= 0)
     if direction > 0:
-        cross = ok & (y0 < 0) & (y1 >= 0)
+        cross = ok & up
     elif direction < 0:
-        cross = ok & (y0 > 0) & (y1 <= 0)
+        cross = ok & down
     else:
-        cross = ok & (((y0 < 0) & (y1 >= 0)) | ((y0 > 0) & (y1 <= 0)))
+        cross = ok & (up | down)
+    if hold > 0:
+        with np.errstate(invalid="ignore"):
+            pos = inside & (Y >= 0)
+            neg = inside & (Y <= 0)
+
+        def persists(good):
+            # the samples i+1 .. i+hold are all good: a window count of the bad ones
+            bad = np.concatenate([np.zeros(Y.shape[:-1] + (1,)), np.cumsum(~good, -1)], -1)
+            n = Y.shape[-1]
+            end = np.minimum(np.arange(1, n) + hold, n)
+            counts = bad[..., end] - bad[..., 1:n]
+            return (counts == 0) & (np.arange(1, n) + hold <= n)
+
+        keep = np.where(up, persists(pos), persists(neg))
+        cross = cross & keep
     has = cross.any(axis=-1)
     i = np.argmax(cross, axis=-1)
     a = np.take_along_axis(y0, i[..., np.newaxis], -1)[..., 0]

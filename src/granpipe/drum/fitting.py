@@ -594,9 +594,12 @@ def drum_fits(
 
 
 def _crossings(ens, curves, units, q, stop, cfg) -> list[FitResult]:
-    """Zero crossings of λ̄ (with a bootstrap interval) and of the low-pass (value only)."""
+    """Zero crossings of λ̄ (with a bootstrap interval) and of the low-pass (value only):
+    the first after which the curve keeps its new sign for ``fits.crossing_hold_s``."""
     out = []
     level = float(cfg["confidence"])
+    block_s = float(ens.attrs["dt_s"]) * int(ens.attrs["block_steps"])
+    hold = int(round(float(cfg["crossing_hold_s"]) / block_s))
     for w, direction in (("onset", +1), ("decay", -1)):
         t = ens[f"seconds_{w}"].values
         if w == "onset":
@@ -610,9 +613,11 @@ def _crossings(ens, curves, units, q, stop, cfg) -> list[FitResult]:
         n = u.n_replicas
 
         def stat(mean_lambda, t=t, search=search, direction=direction):
-            return first_crossing(t, moving_average(mean_lambda, q), search, direction)
+            return first_crossing(t, moving_average(mean_lambda, q), search, direction, hold)
 
-        value = float(first_crossing(t, curves[f"lambda_bar_{w}"].values, search, direction))
+        value = float(
+            first_crossing(t, curves[f"lambda_bar_{w}"].values, search, direction, hold)
+        )
         if u.counts is None:
             boot = bootstrap_replicas(
                 u.lambda_,
@@ -637,18 +642,20 @@ def _crossings(ens, curves, units, q, stop, cfg) -> list[FitResult]:
                 np.nan,
                 "s",
                 n=n,
-                method="first zero crossing of the moving average (Eq. 2)",
+                method="first zero crossing of the moving average (Eq. 2) that lasts "
+                f"{cfg['crossing_hold_s']:g} s",
             ).with_ci(boot)
         )
         lp = curves[f"lambda_lowpass_{w}"].values
         out.append(
             FitResult(
                 f"{w}_lowpass_zero_time",
-                float(first_crossing(t, lp, search, direction)),
+                float(first_crossing(t, lp, search, direction, hold)),
                 np.nan,
                 "s",
                 n=n,
-                method="first zero crossing of the FFT low-pass",
+                method=f"first zero crossing of the FFT low-pass that lasts "
+                f"{cfg['crossing_hold_s']:g} s",
             )
         )
     return out
