@@ -615,9 +615,7 @@ def _crossings(ens, curves, units, q, stop, cfg) -> list[FitResult]:
         def stat(mean_lambda, t=t, search=search, direction=direction):
             return first_crossing(t, moving_average(mean_lambda, q), search, direction, hold)
 
-        value = float(
-            first_crossing(t, curves[f"lambda_bar_{w}"].values, search, direction, hold)
-        )
+        value = float(first_crossing(t, curves[f"lambda_bar_{w}"].values, search, direction, hold))
         if u.counts is None:
             boot = bootstrap_replicas(
                 u.lambda_,
