@@ -13,8 +13,9 @@ records with four pairs' differences transposed in registers (the copy into the
 records cost more than the loads it saved). Lane by lane the arithmetic is the IEEE
 arithmetic of the scalar code, so results are bit-identical.
 
-Numba's on-disk cache keys a kernel on its own source file only: after editing this
-module, delete ``src/granpipe/engine/__pycache__`` so that the kernels are recompiled.
+Numba's own on-disk cache keys a kernel on its own source file only; the package's
+locator (:mod:`granpipe._jit`) keys every kernel on all jitted sources, this module
+included, so an edit here recompiles the kernels that use it in the next process.
 """
 
 from __future__ import annotations
