@@ -113,22 +113,20 @@ def _window_plot(ens, fits, window: str, ax=None, mode: str = "config"):
     V = ens[f"speed_{window}_mean"]
     ax2.plot(t, V.values, "-.", color=SPEED_COLOR, lw=1.4, label="V(t)")
     if window == "onset":
-        name = "fit_speed_onset_config"
-        if name in fits:
-            ax2.plot(
-                t,
-                fits[name].values,
-                "-",
-                color="darkred",
-                lw=2.5,
-                alpha=0.7,
-                label="quadratic fit of V",
-            )
+        for label, style in (("config", "-"), ("auto", ":")):
+            name = f"fit_speed_onset_{label}"
+            if name in fits and np.isfinite(fits[name].values).any():
+                ax2.plot(t, fits[name].values, style, color="darkred", lw=2.5, alpha=0.7,
+                         label=f"quadratic fit of V ({label} window)")  # fmt: skip
     ax2.set_ylabel(f"V [{V.attrs.get('units', '')}]", color=SPEED_COLOR)
-    ax2.set_ylim(bottom=0)
+    # the change of V is a few tens of per cent over rigid rotation: zoom on it
+    finite = V.values[np.isfinite(V.values)]
+    if finite.size:
+        lo, hi = np.percentile(finite, [1.0, 99.0])
+        ax2.set_ylim(max(0.0, lo - 0.3 * (hi - lo)), hi + 0.3 * (hi - lo))
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
-    fig.legend(h1 + h2, l1 + l2, fontsize=7, loc="outside lower center", ncol=4, frameon=False)
+    fig.legend(h1 + h2, l1 + l2, fontsize=7, loc="outside lower center", ncol=3, frameon=False)
     ax.set_xlim(t[0], t[-1])
     return fig, ax, ax2
 
@@ -137,14 +135,18 @@ def fig3_onset(ens: xr.Dataset, fits: xr.Dataset) -> plt.Figure:
     """Fig. 3: chaotic behaviour at avalanche onset (paper: onset 2.628 s, sign change 14.5 s)."""
     fig, ax, _ = _window_plot(ens, fits, "onset")
     t_on = _value(fits, "onset_time")
+    t_auto = _value(fits, "onset_time_auto")
     t_sc = _value(fits, "onset_sign_change_time")
-    for x, ls in ((t_on, ":"), (t_sc, "--")):
+    for x, ls in ((t_on, ":"), (t_auto, ":"), (t_sc, "--")):
         if np.isfinite(x):
             ax.axvline(x, color="0.3", ls=ls, lw=0.8)
     n = int(ens.attrs.get("n_replicas", 0))
+    refused = "" if np.isfinite(t_on) else " (no minimum in the paper's window)"
     ax.set_title(
-        f"Avalanche onset ({n} replicas): onset {_ci_text(fits, 'onset_time')}, "
-        f"sign change {_ci_text(fits, 'onset_sign_change_time')}",
+        f"Avalanche onset ({n} replicas): onset {_ci_text(fits, 'onset_time')}{refused}, "
+        f"automatic {_ci_text(fits, 'onset_time_auto')};\n"
+        f"sign change {_ci_text(fits, 'onset_sign_change_time')}, "
+        f"lag (automatic onset) {_ci_text(fits, 'onset_lag_auto')}",
         fontsize=8,
     )
     return fig
