@@ -11,6 +11,7 @@ from granpipe.analysis.fits import (
     lag,
     minimum_times,
     polyfit_window,
+    sign_change_times,
     vertex_time,
     vertex_times,
     zero_crossing_time,
@@ -189,3 +190,14 @@ def test_first_crossing_with_hold_skips_noise_crossings():
     Y = np.stack([y, -np.abs(y) - 0.01])
     got = first_crossing(t, Y, (0.0, 8.0), +1, hold=50)
     assert got[0] == pytest.approx(4.0) and np.isnan(got[1])
+
+
+def test_sign_change_refuses_an_extrapolated_zero_and_the_wrong_direction():
+    t = T_GRID
+    rising = 0.5 * (t - 4.5)
+    Y = np.stack([rising, -rising, 0.5 * (t - 0.2)])
+    value, err, reason, _ = sign_change_times(t, Y, (3.0, 5.5), direction=+1)
+    assert list(reason) == [0, 2, 3]
+    assert value[0] == pytest.approx(4.5) and np.isnan(value[1:]).all()
+    v_any, _, r_any, _ = sign_change_times(t, Y, (3.0, 5.5), direction=0)
+    assert list(r_any) == [0, 0, 3] and v_any[1] == pytest.approx(4.5)

@@ -159,7 +159,8 @@ def test_heavy_tailed_lambda_unweighted_fit_is_unbiased(tmp_path):
     assert abs(ols.value - 8.0) < 4 * ols.fit_error
     # the weighted fit's level at 8 s is pulled low (true level 0), moving the zero by seconds
     assert ols.coefficients[0] > -0.1 and wls.coefficients[0] < -0.3
-    assert abs(wls.value - 8.0) > 1.0
+    # ... so far that its zero leaves the window (refused) or lands seconds away
+    assert np.isnan(wls.value) or abs(wls.value - 8.0) > 1.0
 
 
 def test_a_downward_parabola_is_refused_as_an_onset(tmp_path):

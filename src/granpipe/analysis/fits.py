@@ -50,8 +50,10 @@ __all__ = [
     "bootstrap_replicas",
     "bootstrap_batches",
     "minimum_times",
+    "sign_change_times",
     "argmin_time",
     "MINIMUM_REASONS",
+    "SIGN_CHANGE_REASONS",
 ]
 
 
@@ -337,6 +339,41 @@ def zero_crossing_times(t, Y, window, sigma=None, *, t_ref=None, error_scale="au
         g = np.stack([-1.0 / c1, c0 / (c1 * c1)], axis=-1)
     err = _quad_form(g, cov)
     return value, err, dict(coef=coef, cov=cov, chi2_red=chi2_red, n_points=n_points, t_ref=t_ref)
+
+
+SIGN_CHANGE_REASONS = {
+    0: "",
+    1: "too few points in the window for a linear fit",
+    2: "the fitted line changes sign the other way",
+    3: "the zero of the fitted line lies outside the fit window",
+}
+"""Codes of :func:`sign_change_times`: why a zero was not accepted as the sign change."""
+
+
+def sign_change_times(t, Y, window, sigma=None, *, direction=0, t_ref=None, error_scale="auto"):
+    """Zeros of linear fits accepted only as sign changes inside their windows.
+
+    The zero counts only if the fitted slope has the sign ``direction`` (+1 rising, −1
+    falling, 0 either) and the zero lies within the fit window; otherwise the value is
+    NaN and ``reason`` says why (:data:`SIGN_CHANGE_REASONS`). An extrapolated zero
+    says where a straight line would cross, not where λ did.
+
+    Returns
+    -------
+    value, fit_error : (...,) [time]; reason : (...,) int; extras : dict as
+    :func:`zero_crossing_times`
+    """
+    value, err, ex = zero_crossing_times(t, Y, window, sigma, t_ref=t_ref, error_scale=error_scale)
+    c1 = ex["coef"][..., 1]
+    lo = np.asarray(window[0], dtype=np.float64)
+    hi = np.asarray(window[1], dtype=np.float64)
+    wrong = (np.sign(c1) != direction) if direction else np.zeros(np.shape(c1), dtype=bool)
+    with np.errstate(invalid="ignore"):
+        outside = (value < lo) | (value > hi) | ~np.isfinite(value)
+    reason = np.where(~np.isfinite(c1), 1, np.where(wrong, 2, np.where(outside, 3, 0)))
+    value = np.where(reason == 0, value, np.nan)
+    err = np.where(reason == 0, err, np.nan)
+    return value, err, reason, ex
 
 
 # -------------------------------------------------------------- auto windows

@@ -22,12 +22,10 @@ interval over replicas (``bootstrap_unit: replica``) or over batch means
 (``batch``, paper scale). The *automatic* windows keep the widths of the
 configured ones, because our timing need not match the paper's: the onset window
 is centred on the smallest smoothed V within ``vertex_search_s`` (the minimum that
-follows the start-up decay), the sign-change windows on the zero of a linear fit of
-λ over the whole range after the V minimum (onset) or the stop (decay). Every
-bootstrap resample re-centres its own windows, so the interval includes the window
-choice. The automatic onset lag refers to the sign change in the paper's window:
-the automatic mode moves the onset to where our minimum is, and its sign-change
-window is a cross-check with its own row.
+follows the start-up decay), the sign-change windows on the first zero crossing of
+λ̄ after the V minimum (onset) or the stop (decay) that lasts ``crossing_hold_s``.
+Every bootstrap resample re-centres its own windows, so the interval includes the
+window choice.
 """
 
 from __future__ import annotations
@@ -44,6 +42,7 @@ import xarray as xr
 
 from ..analysis.ensemble import EnsembleAccumulator
 from ..analysis.fits import (
+    SIGN_CHANGE_REASONS,
     FitResult,
     argmin_time,
     bootstrap_batches,
@@ -51,9 +50,9 @@ from ..analysis.fits import (
     first_crossing,
     lag,
     minimum_times,
+    sign_change_times,
     vertex_time,
     zero_crossing_time,
-    zero_crossing_times,
 )
 from ..analysis.smoothing import (
     lowpass_fft,
@@ -86,6 +85,8 @@ PAPER_VALUES = {
     "decay_lambda_bar_zero_time": 8.13,
     "onset_lowpass_zero_time": 14.5,
     "decay_lowpass_zero_time": 8.13,
+    "onset_lag_lambda_bar": 14.5 - 2.628,
+    "decay_lag_lambda_bar": 8.13 - 5.0,
 }
 """The paper's numbers (Sec. III; seconds after the start of each recording)."""
 
@@ -359,20 +360,19 @@ def _onset_window(t, mV, q, cfg, auto: bool):
     return np.maximum(float(t[0]), centre - hw), centre + hw
 
 
-def _auto_zero_window(t, ml, search, half_width, direction):
+def _auto_zero_window(t, ml, search, half_width, direction, q, hold):
     """Automatic window of a sign-change fit, vectorised over series ``ml`` (..., T).
 
-    Two passes, robust to the many zero crossings that noise gives λ̄: a linear fit of λ
-    over the whole ``search`` range (each bound a float or an array (...,)) must rise
-    (``direction`` +1) or fall (−1) and cross zero inside the range; the window of
-    half-width ``half_width`` is centred on that crossing. NaN bounds where it does not.
+    Centred on the first zero crossing of λ̄ (Eq. 2, q-point half-width) within
+    ``search`` (each bound a float or an array (...,)) after which λ̄ keeps its new sign
+    for ``hold`` samples: with tens of replicas noise makes λ̄ cross zero many times, but
+    rarely for long. NaN bounds where there is no such crossing.
     """
     lo = np.asarray(search[0], dtype=np.float64)
     hi = np.asarray(search[1], dtype=np.float64)
-    z, _, ex = zero_crossing_times(t, ml, (lo, hi))
-    slope = ex["coef"][..., 1]
-    ok = (np.sign(slope) == direction) & (z >= lo) & (z <= hi)
-    c = np.where(ok, z, np.nan)
+    if lo.ndim:
+        lo = lo[..., np.newaxis]
+    c = first_crossing(t, moving_average(ml, q), (lo, hi), direction, hold)
     return c - half_width, c + half_width
 
 
@@ -397,26 +397,23 @@ def _onset_analysis(t, ens, units, cfg, q, *, auto, suffix):
     if auto:
         change = dataclasses.replace(change, method=change.method + " (auto window)")
     curv = _curvature(change, suffix, n)
-    zwin = _auto_zero_window(t, mL, search, half_width, +1) if auto else zcfg
-    sign = _sign_change(t, mL, zwin, sL, f"onset_sign_change_time{suffix}", n, auto)
-    # the lag refers to the sign change in the paper's window in both modes: the automatic
-    # mode moves the onset to where our V minimum is; its sign-change window is a check
-    fixed = sign if not auto else _sign_change(t, mL, zcfg, sL, "", n, False)
-    lag_ = lag(fixed, change, quantity=f"onset_lag{suffix}")
+    hold = _hold_samples(ens, cfg)
+    zwin = _auto_zero_window(t, mL, search, half_width, +1, q, hold) if auto else zcfg
+    sign = _sign_change(t, mL, zwin, sL, f"onset_sign_change_time{suffix}", n, auto, +1)
+    lag_ = lag(sign, change, quantity=f"onset_lag{suffix}")
     v_ref, z_ref = change.t_ref, sign.t_ref
 
     def statistic(mv, ml):
         lo, hi = _onset_window(t, mv, q, cfg, auto)
         v, _, c2, _, _, _ = minimum_times(t, mv, (lo, hi), sV, t_ref=v_ref)
-        zf, _, _ = zero_crossing_times(t, ml, zcfg, sL, t_ref=fixed.t_ref)
         if auto:
             start = argmin_time(t, mv, tuple(cfg["vertex_search_s"]), q)
             start = np.where(np.isfinite(start), start, float(t[0]))
-            win = _auto_zero_window(t, ml, (start, float(t[-1])), half_width, +1)
-            z, _, _ = zero_crossing_times(t, ml, win, sL, t_ref=z_ref)
+            win = _auto_zero_window(t, ml, (start, float(t[-1])), half_width, +1, q, hold)
         else:
-            z = zf
-        return np.stack([v, c2, z, zf - v], axis=-1)
+            win = zcfg
+        z, _, _, _ = sign_change_times(t, ml, win, sL, direction=+1, t_ref=z_ref)
+        return np.stack([v, c2, z, z - v], axis=-1)
 
     out = {"change": change, "curvature": curv, "sign": sign, "lag": lag_}
     if int(cfg["bootstrap_resamples"]) > 0:
@@ -432,14 +429,26 @@ def _onset_analysis(t, ens, units, cfg, q, *, auto, suffix):
     return out
 
 
-def _sign_change(t, mL, window, sL, quantity, n, auto) -> FitResult:
-    """Zero of a linear fit of λ on ``window`` (NaN with a note if there is none)."""
+def _hold_samples(ens, cfg) -> int:
+    """``fits.crossing_hold_s`` in stored blocks."""
+    block_s = float(ens.attrs["dt_s"]) * int(ens.attrs["block_steps"])
+    return int(round(float(cfg["crossing_hold_s"]) / block_s))
+
+
+def _sign_change(t, mL, window, sL, quantity, n, auto, direction) -> FitResult:
+    """Zero of a linear fit of λ on ``window``, accepted only as a sign change the right
+    way inside the window (NaN with a note otherwise; :func:`sign_change_times`)."""
     lo, hi = (float(x) for x in window)
     if not (np.isfinite(lo) and np.isfinite(hi)):
         return FitResult(quantity, math.nan, math.nan, "s", n=n, method="linear fit, zero",
-                         note="the linear fit of λ over the search range does not cross "
-                         "zero the right way inside it: no sign change")  # fmt: skip
+                         note="λ̄ has no lasting zero crossing the right way after the "
+                         "change of state: no window for the sign change")  # fmt: skip
     res = zero_crossing_time(t, mL, (lo, hi), sL, quantity=quantity, n=n)
+    _, _, reason, _ = sign_change_times(t, mL, (lo, hi), sL, direction=direction,
+                                        t_ref=res.t_ref)  # fmt: skip
+    if int(reason):
+        res = dataclasses.replace(res, value=math.nan, fit_error=math.nan,
+                                  note=SIGN_CHANGE_REASONS[int(reason)])  # fmt: skip
     if auto:
         res = dataclasses.replace(res, method=res.method + " (auto window)")
     return res
@@ -466,14 +475,15 @@ def _decay_analysis(t, ens, units, cfg, q, stop, *, auto, suffix):
     zcfg = tuple(cfg["decay_zero_window_s"])
     half_width = 0.5 * (zcfg[1] - zcfg[0])
     search = (stop, float(t[-1]))
-    zwin = _auto_zero_window(t, mL, search, half_width, -1) if auto else zcfg
-    sign = _sign_change(t, mL, zwin, sL, f"decay_sign_change_time{suffix}", n, auto)
+    hold = _hold_samples(ens, cfg)
+    zwin = _auto_zero_window(t, mL, search, half_width, -1, q, hold) if auto else zcfg
+    sign = _sign_change(t, mL, zwin, sL, f"decay_sign_change_time{suffix}", n, auto, -1)
     lag_ = lag(sign, stop, quantity=f"decay_lag{suffix}")
     z_ref = sign.t_ref
 
     def statistic(mv, ml):
-        win = _auto_zero_window(t, ml, search, half_width, -1) if auto else zcfg
-        z, _, _ = zero_crossing_times(t, ml, win, sL, t_ref=z_ref)
+        win = _auto_zero_window(t, ml, search, half_width, -1, q, hold) if auto else zcfg
+        z, _, _, _ = sign_change_times(t, ml, win, sL, direction=-1, t_ref=z_ref)
         return np.stack([z, z - stop], axis=-1)
 
     out = {"sign": sign, "lag": lag_}
@@ -586,74 +596,65 @@ def drum_fits(
                 _fit_curve(tt, res, deg),
                 {"units": ens[ref].attrs["units"], "long_name": f"{kind}, {name} window"},
             )
-    results.extend(_crossings(ens, curves, units, q, stop, cfg))
+    auto = next((r for r in results if r.quantity == "onset_time_auto"), None)
+    if auto is None:  # no automatic windows: the automatic onset for the lag rows only
+        auto = _onset_analysis(t_on, ens, units["onset"], {**cfg, "bootstrap_resamples": 0},
+                               q, auto=True, suffix="_auto")["change"]  # fmt: skip
+    results.extend(_crossings(ens, curves, units, q, stop, cfg, auto))
     results.extend(_startup_excess(t_on, ens, units["onset"], cfg, q))
     if label:
         results = [dataclasses.replace(r, quantity=r.quantity + label) for r in results]
     return results, curves
 
 
-def _crossings(ens, curves, units, q, stop, cfg) -> list[FitResult]:
+def _crossings(ens, curves, units, q, stop, cfg, onset_auto) -> list[FitResult]:
     """Zero crossings of λ̄ (with a bootstrap interval) and of the low-pass (value only):
-    the first after which the curve keeps its new sign for ``fits.crossing_hold_s``."""
+    the first after which the curve keeps its new sign for ``fits.crossing_hold_s``; and
+    the lags they give, λ̄'s crossing minus the automatic onset time (onset) or the stop
+    (decay), bootstrapped jointly with the onset."""
     out = []
-    level = float(cfg["confidence"])
-    block_s = float(ens.attrs["dt_s"]) * int(ens.attrs["block_steps"])
-    hold = int(round(float(cfg["crossing_hold_s"]) / block_s))
+    hold = _hold_samples(ens, cfg)
+    search_v = tuple(cfg["vertex_search_s"])
     for w, direction in (("onset", +1), ("decay", -1)):
         t = ens[f"seconds_{w}"].values
         if w == "onset":
-            vmin = float(
-                argmin_time(t, ens["speed_onset_mean"].values, tuple(cfg["vertex_search_s"]), q)
-            )
+            vmin = float(argmin_time(t, ens["speed_onset_mean"].values, search_v, q))
             search = (vmin if np.isfinite(vmin) else 0.0, float(t[-1]))
         else:
             search = (stop, float(t[-1]))
         u = units[w]
         n = u.n_replicas
 
-        def stat(mean_lambda, t=t, search=search, direction=direction):
-            return first_crossing(t, moving_average(mean_lambda, q), search, direction, hold)
+        def stat(mv, ml, t=t, w=w, search=search, direction=direction):
+            if w == "onset":
+                lo, hi = _onset_window(t, mv, q, cfg, True)
+                v, _, _, _, _, _ = minimum_times(t, mv, (lo, hi), None, t_ref=onset_auto.t_ref)
+                start = argmin_time(t, mv, search_v, q)
+                rng = (np.where(np.isfinite(start), start, 0.0)[:, None], float(t[-1]))
+            else:
+                v, rng = np.full(mv.shape[0], stop), search
+            c = first_crossing(t, moving_average(ml, q), rng, direction, hold)
+            return np.stack([c, c - v], axis=-1)
 
         value = float(first_crossing(t, curves[f"lambda_bar_{w}"].values, search, direction, hold))
-        if u.counts is None:
-            boot = bootstrap_replicas(
-                u.lambda_,
-                stat,
-                n_resamples=int(cfg["bootstrap_resamples"]),
-                level=level,
-                seed=int(cfg["seed"]),
-            )
-        else:
-            boot = bootstrap_batches(
-                u.lambda_,
-                u.counts,
-                stat,
-                n_resamples=int(cfg["bootstrap_resamples"]),
-                level=level,
-                seed=int(cfg["seed"]),
-            )
+        change = onset_auto.value if w == "onset" else stop
+        boot = _boot(u, stat, cfg)
+        held = f"that lasts {cfg['crossing_hold_s']:g} s"
         out.append(
-            FitResult(
-                f"{w}_lambda_bar_zero_time",
-                value,
-                np.nan,
-                "s",
-                n=n,
-                method="first zero crossing of the moving average (Eq. 2) that lasts "
-                f"{cfg['crossing_hold_s']:g} s",
-            ).with_ci(boot)
-        )
+            FitResult(f"{w}_lambda_bar_zero_time", value, np.nan, "s", n=n,
+                      method=f"first zero crossing of the moving average (Eq. 2) {held}",
+                      ).with_ci(boot, 0)
+        )  # fmt: skip
+        what = "the automatic onset time" if w == "onset" else "the stop of the drum"
+        out.append(
+            FitResult(f"{w}_lag_lambda_bar", value - change, np.nan, "s", n=n,
+                      method=f"zero crossing of the moving average minus {what}",
+                      ).with_ci(boot, 1)
+        )  # fmt: skip
         lp = curves[f"lambda_lowpass_{w}"].values
+        lp_zero = float(first_crossing(t, lp, search, direction, hold))
         out.append(
-            FitResult(
-                f"{w}_lowpass_zero_time",
-                float(first_crossing(t, lp, search, direction, hold)),
-                np.nan,
-                "s",
-                n=n,
-                method=f"first zero crossing of the FFT low-pass that lasts "
-                f"{cfg['crossing_hold_s']:g} s",
-            )
-        )
+            FitResult(f"{w}_lowpass_zero_time", lp_zero, np.nan, "s", n=n,
+                      method=f"first zero crossing of the FFT low-pass {held}")
+        )  # fmt: skip
     return out

@@ -253,39 +253,50 @@ def fig6_startup(points: dict) -> plt.Figure:
     return fig
 
 
-def fig7_lag_vs_rotation(points: dict) -> plt.Figure:
+def fig7_lag_vs_rotation(points: dict, undetermined_width: float = 20.0) -> plt.Figure:
     """Onset and decay lags (sign change of λ minus change of avalanche state) against the
-    drum's angular speed Ω, with their bootstrap intervals; the paper's lags at 900 s."""
+    drum's angular speed Ω, with their bootstrap intervals; the paper's lags at 900 s.
+
+    A lag whose interval is wider than ``undetermined_width`` [s], or that has no value
+    (no minimum, no lasting sign change), is not a measurement: it is marked at the
+    bottom of the axis as undetermined instead of stretching the axis.
+    """
     from ..drum.fitting import PAPER_VALUES
 
     chosen = _same(points, "period_s")
-    fig, ax = plt.subplots(figsize=(6.0, 4.4), layout="constrained")
-    for kind, color, paper in (
-        ("onset_lag", "tab:red", PAPER_VALUES["onset_lag"]),
-        ("decay_lag", "tab:blue", PAPER_VALUES["decay_lag"]),
+    fig, ax = plt.subplots(figsize=(6.4, 4.6), layout="constrained")
+    y_lo, y_hi = -5.0, 30.0
+    for kind, color, paper, dx in (
+        ("onset_lag", "tab:red", PAPER_VALUES["onset_lag"], 0.98),
+        ("decay_lag", "tab:blue", PAPER_VALUES["decay_lag"], 1.02),
     ):
-        for suffix, mfc, dx in (("_auto", color, 1.0), ("", "white", 1.04)):
-            om, val, lo, hi = [], [], [], []
+        for suffix, mfc in (("_auto", color), ("", "white")):
+            window = "automatic windows" if suffix else "paper's windows"
+            label = f"{kind.split('_')[0]}, {window}"
             for p in chosen.values():
                 name = f"{kind}{suffix}{p['label']}"
-                om.append(2.0 * np.pi / float(p["period_s"]) * dx)
-                val.append(_value(p["fits"], name))
-                lo.append(_value(p["fits"], f"{name}_ci_low"))
-                hi.append(_value(p["fits"], f"{name}_ci_high"))
-            val, lo, hi = map(np.asarray, (val, lo, hi))
-            err = np.vstack([np.where(np.isfinite(lo), val - lo, 0.0),
-                             np.where(np.isfinite(hi), hi - val, 0.0)])  # fmt: skip
-            window = "automatic windows" if suffix else "paper's windows"
-            ax.errorbar(om, val, yerr=err, fmt="o", color=color, mfc=mfc, capsize=3,
-                        label=f"{kind.split('_')[0]}, {window}")  # fmt: skip
+                om = 2.0 * np.pi / float(p["period_s"]) * dx * (1.0 if suffix else 1.03)
+                v = _value(p["fits"], name)
+                lo, hi = _value(p["fits"], f"{name}_ci_low"), _value(p["fits"], f"{name}_ci_high")
+                if not (np.isfinite(v) and np.isfinite(lo) and np.isfinite(hi)) or (
+                    hi - lo > undetermined_width
+                ):
+                    ax.plot([om], [y_lo + 1.0], "x", color=color, ms=7)
+                    continue
+                ax.errorbar([om], [v], yerr=[[v - lo], [hi - v]], fmt="o", color=color,
+                            mfc=mfc, capsize=3, label=label)  # fmt: skip
+                label = None
         ax.plot([2.0 * np.pi / 900.0], [paper], "*", color=color, ms=12, mec="k",
                 label=f"{kind.split('_')[0]}, paper (900 s)")  # fmt: skip
+    ax.plot([], [], "x", color="0.3", label="undetermined (no value, or CI > "
+            f"{undetermined_width:g} s)")  # fmt: skip
     ax.axhline(0.0, color="0.5", lw=0.6)
     ax.set_xscale("log")
+    ax.set_ylim(y_lo, y_hi)
     ax.set_xlabel("Ω [rad/s]")
     ax.set_ylabel("lag [s]")
     ax.set_title("lag of the λ sign change behind the avalanche state (95 % CIs)", fontsize=9)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper right")
     return fig
 
 
