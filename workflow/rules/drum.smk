@@ -18,25 +18,29 @@ DRUM_REF = next(iter(DRUM_POINTS))
 DRUM_BATCH_MIN = DRUM["ensemble"]["batch_size"] * DRUM["resources"]["replica_minutes"]
 
 
-def drum_runs_of(point):
-    return [out("drum", f) for f in drum_layout.run_files(DRUM, point)]
+DRUM_RUNS = {p: [out("drum", f) for f in drum_layout.run_files(DRUM, p)] for p in DRUM_POINTS}
+# A point's folder from three wildcards: a wildcard value holding "," or "=" would break
+# the job specifications Snakemake passes to grouped cluster jobs.
+DRUM_POINT = drum_layout.POINT_PATTERN
 
 
 wildcard_constraints:
     drum_batch=r"\d{4}",
-    drum_point="|".join(re.escape(p) for p in DRUM_POINTS),
+    drum_n=r"\d+",
+    drum_period=r"[0-9.e+]+",
+    drum_startup="|".join(re.escape(s) for s in drum_layout.STARTUPS),
 
 
 rule drum_init:
     """Random placement and start-up of the replicas of one batch of one point."""
     output:
-        out("drum", "init", "{drum_point}", "batch_{drum_batch}.nc"),
+        out("drum", "init", DRUM_POINT, "batch_{drum_batch}.nc"),
     params:
-        json=lambda w: as_json(DRUM_PARAMS["sim"][w.drum_point]),
+        json=lambda w: as_json(DRUM_PARAMS["sim"][drum_layout.point_of(w)]),
     conda:
         "../envs/granpipe.yaml"
     log:
-        log_path("drum", "init", "{drum_point}", "batch_{drum_batch}.log"),
+        log_path("drum", "init", DRUM_POINT, "batch_{drum_batch}.log"),
     threads: DRUM["ensemble"]["threads"]
     resources:
         runtime=lambda w, threads: int(10 + 0.3 * DRUM_BATCH_MIN / threads),
@@ -53,13 +57,13 @@ rule drum_runs:
     input:
         init=rules.drum_init.output[0],
     output:
-        out("drum", "runs", "{drum_point}", "batch_{drum_batch}.nc"),
+        out("drum", "runs", DRUM_POINT, "batch_{drum_batch}.nc"),
     params:
-        json=lambda w: as_json(DRUM_PARAMS["sim"][w.drum_point]),
+        json=lambda w: as_json(DRUM_PARAMS["sim"][drum_layout.point_of(w)]),
     conda:
         "../envs/granpipe.yaml"
     log:
-        log_path("drum", "runs", "{drum_point}", "batch_{drum_batch}.log"),
+        log_path("drum", "runs", DRUM_POINT, "batch_{drum_batch}.log"),
     threads: DRUM["ensemble"]["threads"]
     resources:
         runtime=lambda w, threads: int(10 + 1.2 * DRUM_BATCH_MIN / threads),
@@ -74,18 +78,18 @@ rule drum_runs:
 rule drum_ensemble:
     """Streaming reduction of every batch of one point to mean, standard error and count."""
     input:
-        runs=lambda w: drum_runs_of(w.drum_point),
+        runs=lambda w: DRUM_RUNS[drum_layout.point_of(w)],
     output:
-        out("drum", "ensemble", "{drum_point}.nc"),
+        out("drum", "ensemble", f"{DRUM_POINT}.nc"),
     params:
         json=lambda w: as_json(DRUM_PARAMS["ensemble"]),
     conda:
         "../envs/granpipe.yaml"
     log:
-        log_path("drum", "ensemble", "{drum_point}.log"),
+        log_path("drum", "ensemble", f"{DRUM_POINT}.log"),
     threads: 1
     resources:
-        runtime=lambda w: 10 + len(drum_runs_of(w.drum_point)) // 50,
+        runtime=lambda w: 10 + len(DRUM_RUNS[drum_layout.point_of(w)]) // 50,
         mem_mb=2000,
     shell:
         "granpipe drum ensemble --params {params.json:q} --out {output:q} {input.runs:q}"
@@ -96,18 +100,18 @@ rule drum_fits:
     """Onset time, sign changes and lags of one point with fit errors and bootstrap CIs."""
     input:
         ensemble=rules.drum_ensemble.output[0],
-        runs=lambda w: drum_runs_of(w.drum_point),
+        runs=lambda w: DRUM_RUNS[drum_layout.point_of(w)],
     output:
-        out("drum", "fits", "{drum_point}.nc"),
+        out("drum", "fits", f"{DRUM_POINT}.nc"),
     params:
-        json=lambda w: as_json(DRUM_PARAMS["fits"][w.drum_point]),
+        json=lambda w: as_json(DRUM_PARAMS["fits"][drum_layout.point_of(w)]),
     conda:
         "../envs/granpipe.yaml"
     log:
-        log_path("drum", "fits", "{drum_point}.log"),
+        log_path("drum", "fits", f"{DRUM_POINT}.log"),
     threads: 1
     resources:
-        runtime=lambda w: 15 + len(drum_runs_of(w.drum_point)) // 20,
+        runtime=lambda w: 15 + len(DRUM_RUNS[drum_layout.point_of(w)]) // 20,
         mem_mb=4000,
     shell:
         "granpipe drum fits --params {params.json:q} --ensemble {input.ensemble:q}"
@@ -203,6 +207,6 @@ register_targets(
     lambda: [
         *rules.drum_figures.output,
         rules.drum_summary.output[0],
-        *[f for p in DRUM_POINTS for f in drum_runs_of(p)],
+        *[f for files in DRUM_RUNS.values() for f in files],
     ],
 )

@@ -16,6 +16,9 @@ from collections.abc import Mapping
 from .settings import PHYSICS_KEYS, filled, point_label, points
 
 __all__ = [
+    "POINT_PATTERN",
+    "STARTUPS",
+    "point_of",
     "point_name",
     "point_names",
     "point_sections",
@@ -47,6 +50,20 @@ COMPARISON_FIGURES = {
     7: "lag_vs_rotation",
 }
 """Figures across points: V and λ̄ of each start-up; the lags against the drum's Ω."""
+
+
+POINT_PATTERN = "N={drum_n},period={drum_period}s,startup={drum_startup}"
+"""A point's folder name as Snakemake wildcards (:func:`point_name` fills them)."""
+
+STARTUPS = ("paper", "settled")
+
+
+def point_of(wildcards) -> str:
+    """The point name of a job's wildcards ``drum_n``, ``drum_period``, ``drum_startup``."""
+    return POINT_PATTERN.format(
+        drum_n=wildcards.drum_n, drum_period=wildcards.drum_period,
+        drum_startup=wildcards.drum_startup,
+    )  # fmt: skip
 
 
 def point_name(point: Mapping) -> str:
