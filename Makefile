@@ -50,7 +50,7 @@ bench: env
 	$(BIN)/python benchmarks/engine.py
 	$(BIN)/python benchmarks/engine_passes.py
 
-# issue 3's reference (LAMMPS GRANULAR, Debian's build) timed beside the engine
+# the reference (LAMMPS GRANULAR, Debian's build) timed beside the engine
 bench-reference: env
 	tools/lammps/install.sh
 	$(BIN)/python benchmarks/lammps_reference.py

@@ -1,7 +1,8 @@
-"""Box study throughput and start-up hazards (SPEC §3), printed, never asserted.
+"""Box study throughput and start-up hazards (docs/box.md), printed, never asserted.
 
     .venv/bin/python benchmarks/box.py            # cost per particle-step, N = 200, 400
     .venv/bin/python benchmarks/box.py --hazards  # launch speeds and ψ6 at measurement start
+    .venv/bin/python benchmarks/box.py --crystal [--gamma 1.2 2.4] [--n-l 20] [--jobs 2]
 
 Cost: ns per particle-step of the box law with walls and a driven plate (Γ = 2, after
 one period of drive), and the projected wall time of one default-scale point.
@@ -11,6 +12,12 @@ random start, each start-up (Eq. (1) as printed: impulsive; ``sine`` with a 2-pe
 ramp; ``bottom`` turning point without ramp), with μ = 0.6 and frictionless side walls:
 the largest bed centre-of-mass and disk upward speeds over the plate's top speed Aω,
 and the bulk |ψ6| when the measurement begins after 6 periods.
+
+Crystal: does the crystal start survive the start-up? For each preparation (row fit,
+start phase, ramp and transient length in periods, side-wall friction μ_w) and Γ, the
+crystal check of docs/box.md (bulk |ψ6|, hexagonal fraction, dislocations = bulk disks
+with other than six Delaunay neighbours) at the start of the measurement and after
+``--periods`` more periods.
 """
 
 from __future__ import annotations
@@ -96,14 +103,69 @@ def hazards(gamma=1.5, n_l=10, transient=6, only=None):
         )
 
 
+CRYSTAL_CASES = [
+    # rows, start_phase, ramp, transient, mu_w
+    ("spanning", "sine", 2.0, 6, 0.6),
+    ("spanning", "sine", 6.0, 10, 0.6),
+    ("spanning", "sine", 20.0, 24, 0.6),
+    ("inset", "sine", 6.0, 10, 0.6),
+    ("spanning", "bottom", 0.0, 6, 0.6),
+    ("spanning", "sine", 2.0, 6, 0.4),
+    ("spanning", "sine", 2.0, 6, 0.2),
+    ("spanning", "sine", 2.0, 6, 0.0),
+]
+
+
+def _crystal_case(args):
+    from granpipe.analysis import box as ab
+
+    (rows, phase, ramp, transient, mu_w), gamma, n_l, periods = args
+    phys = {**PHYSICS, "mu_side_walls": mu_w}
+    init = {**INIT, "crystal_rows": rows, "crystal_relax_time": 2.0}
+    prep = prepare.prepare(phys, init, 20 * n_l, "crystal", np.random.default_rng(3))
+    proto = dict(
+        start_phase=phase, ramp_periods=ramp, transient_periods=transient, phases_per_period=8
+    )  # fmt: skip
+    res = protocol.run_part(
+        phys, proto, gamma, 0, range(periods), start_positions=prep.positions,
+        start_velocities=prep.velocities, start_spins=prep.spins,
+    )  # fmt: skip
+    checks = [ab.crystal_check(res.cycle_positions[i].astype(float), 20.0) for i in (0, periods)]
+    return (rows, phase, ramp, transient, mu_w, gamma, checks, res.wall_seconds)
+
+
+def crystal(gammas=(1.2, 2.4), n_l=20, periods=4, jobs=1, only=None):
+    from concurrent.futures import ProcessPoolExecutor
+
+    cases = CRYSTAL_CASES if not only else [CRYSTAL_CASES[i] for i in only]
+    todo = [(c, g, n_l, periods) for g in gammas for c in cases]
+    print(f"N_l = {n_l}; crystal check at measurement start and {periods} periods later")
+    print("rows     phase  ramp  tr  mu_w  Gamma | psi6  hex   disl intact | "
+          "psi6  hex   disl intact | wall s")  # fmt: skip
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        for rows, phase, ramp, tr, mu_w, g, checks, wall in pool.map(_crystal_case, todo):
+            cols = " | ".join(
+                f"{c.psi6:.3f} {c.hexagonal:.3f} {c.dislocations:4d} {str(c.intact):6s}"
+                for c in checks
+            )
+            print(f"{rows:8s} {phase:6s} {ramp:4.0f} {tr:3d} {mu_w:5.2f} {g:5.2f} | {cols} | "
+                  f"{wall:5.0f}", flush=True)  # fmt: skip
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--hazards", action="store_true")
-    ap.add_argument("--gamma", type=float, default=None)
-    ap.add_argument("--n-l", type=int, default=10)
+    ap.add_argument("--crystal", action="store_true")
+    ap.add_argument("--gamma", type=float, nargs="*", default=None)
+    ap.add_argument("--n-l", type=int, default=None)
+    ap.add_argument("--periods", type=int, default=4)
+    ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--cases", type=int, nargs="*", default=None, help="indices of the cases")
     args = ap.parse_args()
-    if args.hazards:
-        hazards(gamma=args.gamma or 1.5, n_l=args.n_l, only=args.cases)
+    if args.crystal:
+        crystal(gammas=args.gamma or (1.2, 2.4), n_l=args.n_l or 20, periods=args.periods,
+                jobs=args.jobs, only=args.cases)  # fmt: skip
+    elif args.hazards:
+        hazards(gamma=(args.gamma or [1.5])[0], n_l=args.n_l or 10, only=args.cases)
     else:
-        cost(gamma=args.gamma or 2.0)
+        cost(gamma=(args.gamma or [2.0])[0])

@@ -1,10 +1,10 @@
-"""Engine throughput: ns per particle-step on the drum and box systems of SPEC §1 and §3.
+"""Engine throughput: ns per particle-step on the drum and box systems (docs/drum.md, docs/box.md).
 
     .venv/bin/python benchmarks/engine.py [--repeats 5] [--quick]
 
 Systems (one replica, one thread, compiled code loaded from numba's cache first):
 
-* drum: 736 mobile + 150 wall disks (SPEC §1), a pile settled with the drum at rest,
+* drum: 736 mobile + 150 wall disks (docs/drum.md), a pile settled with the drum at rest,
   then turning clockwise at Omega = 2.4417e-4; forward only, and with the tangent
   dynamics (lambda and V recorded in 4 ms blocks). ns per *mobile* particle-step.
 * box: N = 1200 disks (sigma = 1, m = 1) in Lx = 20 with the Table I law, dt = t_c/50;
@@ -19,7 +19,7 @@ starting states are cached in the system temp folder (delete the ``granpipe_benc
 files to rebuild them). The last line is one JSON object:
 ``{"drum_forward_ns", "drum_tangent_ns", "box_driven_ns", "box_dense_ns"}`` (medians).
 
-For scale (issue 3): LAMMPS GRANULAR on one core of a 2-core machine takes about
+For scale: LAMMPS GRANULAR on one core of a 2-core machine takes about
 110 (drum), 38 (driven box) and 100 (dense crystal) ns per particle-step. On a shared
 virtual machine, other guests' load shows as CPU time too (``steal``): compare versions
 by interleaved runs. ``benchmarks/engine_passes.py`` breaks a step down by pass;
@@ -39,7 +39,7 @@ from pathlib import Path
 
 # One BLAS thread, as `make bench` sets, before numpy loads OpenBLAS: the idle thread pools
 # of numpy's and scipy's OpenBLAS slowed the dense box from 37 to 52 ns per particle-step
-# on a 2-vCPU machine (docs/engine_performance.md, session 5).
+# on a 2-vCPU machine (docs/engine_performance.md, round 5).
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 

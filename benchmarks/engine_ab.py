@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/engine_ab.py REV [--systems df,dt,bc,bd] [--rounds 24]
 
 On a shared VM the speed of a process can flip between levels ~1.4x apart for tens of
-seconds (docs/engine_performance.md, session 5), so medians of separate processes do not
+seconds (docs/engine_performance.md, round 5), so medians of separate processes do not
 compare versions. This script imports ``src/granpipe`` of revision ``REV`` as a renamed
 package (``granpipe_ab_<sha>``, exported with ``git archive`` into the system temp folder
 and compiled there once) beside the working tree's ``granpipe``, builds the benchmark

@@ -2,8 +2,8 @@
 
     .venv/bin/python benchmarks/engine_passes.py [--repeats 5]
 
-Runs on the same settled states as ``benchmarks/engine.py`` (drum pile of SPEC §1,
-rotating; dense box crystal of SPEC §3) and times, in a jitted loop, each pass the step
+Runs on the same settled states as ``benchmarks/engine.py`` (drum pile of docs/drum.md,
+rotating; dense box crystal of docs/box.md) and times, in a jitted loop, each pass the step
 loop of :mod:`granpipe.engine.kernels` makes: the gather of relative coordinates, the
 contact law over the listed pairs, the scatter of pair forces onto disks (and the fused
 four-lane pass that does all three, used with the tangent vector), the flat-wall
@@ -26,7 +26,7 @@ import time
 
 # One BLAS thread, as `make bench` sets, before numpy loads OpenBLAS: the idle thread pools
 # of numpy's and scipy's OpenBLAS slowed the dense box from 37 to 52 ns per particle-step
-# on a 2-vCPU machine (docs/engine_performance.md, session 5).
+# on a 2-vCPU machine (docs/engine_performance.md, round 5).
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 

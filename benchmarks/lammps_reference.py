@@ -20,12 +20,12 @@ gravity, skin and rebuild criterion: a rebuild once some disk moved half the ski
 
 * drum: ``pair_style granular`` with ``hooke k_n gamma_n``, ``damping velocity`` (not
   scaled by mass) and ``tangential linear_nohistory gamma_t/gamma_n mu`` (viscous,
-  capped at Coulomb): the drum law of SPEC §1. The 150 wall disks turn with ``fix move
+  capped at Coulomb): the drum law of docs/drum.md. The 150 wall disks turn with ``fix move
   rotate`` at Omega; wall-wall pairs are excluded from the list. LAMMPS integrates spins
   too (``nve/sphere``), which the drum law has not; ns per *mobile* disk, as engine.py.
 * box: ``pair_style gran/hooke/history kappa_n kappa_t gamma_n gamma_t mu 1``: normal
   spring, m_eff-scaled dashpots, tangential spring with shear history capped at
-  Coulomb (the box law of SPEC §3, and LAMMPS' fastest granular style: ``granular``
+  Coulomb (the box law of docs/box.md, and LAMMPS' fastest granular style: ``granular``
   with the same model took 159 against 118 ns on the crystal), disks with I = m a²/2
   (``disc``); side walls and bottom by ``fix wall/gran`` with the same law. The driven
   bottom moves as ``wiggle y A 2pi/omega``, i.e. ``A sin(omega tau)``: the engine's state
@@ -69,7 +69,7 @@ import numpy as np
 # is pure Python over ctypes, so any CPython can load it from there
 DEBIAN_DIST = "/usr/lib/python3/dist-packages"
 
-# issue 3: LAMMPS on the reference machine (ns per particle-step) and the targets
+# LAMMPS on the reference machine (ns per particle-step) and the targets
 REFERENCE_NS = {"df": 110.0, "dt": 110.0, "bd": 38.0, "bc": 100.0}
 TARGET_NS = {"df": 12.0, "dt": 25.0, "bd": 7.6, "bc": 20.0}
 NAMES = {"df": "drum forward", "dt": "drum tangent", "bd": "box driven", "bc": "box dense"}

@@ -36,6 +36,8 @@ __all__ = [
     "read_dataset",
     "write_text",
     "config_from_attrs",
+    "config_hash",
+    "expect_attrs",
     "check_run_files",
     "RunFileError",
 ]
@@ -92,7 +94,7 @@ def provenance_attrs(
         "granpipe_version": __version__,
         "git_commit": git_commit(),
         "config_yaml": yaml.safe_dump(_plain(subset), sort_keys=True),
-        "config_hash": physics_hash(_plain(subset)),
+        "config_hash": config_hash(subset),
         "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "Conventions": "CF-1.8",
     }
@@ -103,6 +105,22 @@ def provenance_attrs(
     for key, value in extra.items():
         attrs[key] = value if isinstance(value, (str, int, float)) else str(value)
     return attrs
+
+
+def config_hash(config_subset: Mapping) -> str:
+    """The ``config_hash`` attribute a file computed from ``config_subset`` carries."""
+    return physics_hash(_plain(dict(config_subset)))
+
+
+def expect_attrs(ds: xr.Dataset, path: str | os.PathLike, **want) -> None:
+    """Check that ``ds`` (read from ``path``) carries the attributes ``want`` (compared as
+    text, so 0.6 and "0.6" agree); RunFileError names the file, the key and both values."""
+    for key, value in want.items():
+        have = ds.attrs.get(key)
+        if have is None or str(have) != str(value):
+            raise RunFileError(
+                f"{path} is not the expected input: attribute {key} = {have!r}, expected {value!r}"
+            )
 
 
 def _plain(obj):

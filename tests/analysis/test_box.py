@@ -11,6 +11,8 @@ from granpipe.analysis.box import (
     bouncing_measure,
     classify_order,
     convection_measure,
+    crystal_check,
+    delaunay_coordination,
     detachment_fraction,
     free_surface_height,
     granular_temperature,
@@ -274,3 +276,43 @@ def test_nearest_neighbours_padding():
     nb = nearest_neighbours(pos, 6, 1.2)
     assert nb.shape == (3, 6)
     assert nb[0, 0] == 1 and np.all(nb[0, 1:] == -1) and np.all(nb[2] == -1)
+
+
+# ------------------------------------------------------------- crystal check
+def edge_dislocation(pos, core, b=1.0, nu=1.0 / 3.0):
+    """Displace ``pos`` by the isotropic elastic field of an edge dislocation with Burgers
+    vector (b, 0) at ``core`` (Hirth & Lothe, Eq. 3-45); the cut along the negative x axis
+    shifts rows by one lattice spacing, so the lattice closes up except at the core."""
+    x, y = (pos - core).T
+    r2 = x * x + y * y
+    ux = b / (2 * np.pi) * (np.arctan2(y, x) + x * y / (2 * (1 - nu) * r2))
+    uy = (
+        -b
+        / (2 * np.pi)
+        * ((1 - 2 * nu) / (4 * (1 - nu)) * np.log(r2) + (x * x - y * y) / (4 * (1 - nu) * r2))
+    )
+    return pos + np.column_stack([ux, uy])
+
+
+def test_crystal_check_perfect_lattice_and_one_dislocation():
+    lattice = hex_crystal(n_x=30, n_rows=34)
+    lx = 31.0
+    perfect = crystal_check(lattice, lx)
+    assert perfect.n_bulk > 600 and perfect.dislocations == 0 and perfect.intact
+    assert perfect.psi6 == pytest.approx(1.0, abs=1e-12) and perfect.hexagonal == 1.0
+    # a few per cent of thermal noise moves no Delaunay neighbour
+    rng = np.random.default_rng(3)
+    assert crystal_check(lattice + rng.normal(0, 0.02, lattice.shape), lx).intact
+
+    core = np.array([15.25, 0.5 + 14.5 * H])  # between two rows, off every site
+    bent = edge_dislocation(lattice, core)
+    check = crystal_check(bent, lx)
+    # the core is one five- and one seven-fold site (the dislocation's 5-7 pair) ...
+    z = delaunay_coordination(bent)
+    near = np.hypot(*(bent - core).T) < 1.0
+    assert sorted(z[near & (z != 6)]) == [5, 7] and check.dislocations == 2
+    assert not check.intact
+    # ... where |ψ6| falls below the crystal threshold, while the bulk mean hardly moves
+    psi6 = np.abs(local_order(bent)["psi6"])
+    assert psi6[near].mean() < 0.9 and psi6[near].min() < 0.7
+    assert check.psi6 > 0.99

@@ -39,10 +39,16 @@ PROTOCOL = {
     "phases_per_period": 16,
 }
 SECTION = {
-    "physics": PHYSICS,
+    "physics": {k: v for k, v in PHYSICS.items() if k != "mu_side_walls"},
     "init": INIT,
     "protocol": PROTOCOL,
-    "grid": {"N_l": [5], "Gamma": [0.7, 2.0], "inits": ["crystal", "random"], "replicas": 1},
+    "grid": {
+        "N_l": [5],
+        "Gamma": [0.7, 2.0],
+        "inits": ["crystal", "random"],
+        "mu_side_walls": [0.6],
+        "replicas": 1,
+    },  # fmt: skip
     "detection": {
         "convection_s_c": 1.0,
         "bouncing_s_b": 1.0 / 30.0,

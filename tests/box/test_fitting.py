@@ -1,7 +1,7 @@
 """The box fits on synthetic point tables with known thresholds, breakpoints and barriers.
 
 The analysis helpers check the generic regressions; here the glue: grouping by
-(init, N_l), criteria and scales, regions from the T_g* breakpoints handed to the
+(init, N_l, mu_w), crystal points whose crystal broke left out, criteria and scales, regions from the T_g* breakpoints handed to the
 Arrhenius fits, summary rows next to the paper's numbers, and intervals that cover the
 truth on noisy data.
 """
@@ -39,7 +39,7 @@ def _tg(init, K):
     return np.exp(y)
 
 
-def _table(seed):
+def _table(seed, mu_w=0.6):
     rng = np.random.default_rng(seed)
     rows = []
     for init in ("random", "crystal"):
@@ -60,7 +60,8 @@ def _table(seed):
                 n_slips = rng.binomial(trials, p)
                 rows.append(
                     {
-                        "point": f"N_l={n_l},Gamma={g!r},init={init}",
+                        "point": f"N_l={n_l},Gamma={float(g)!r},init={init},mu_w={mu_w!r}",
+                        "mu_w": mu_w,
                         "N_l": n_l,
                         "N": 20 * n_l,
                         "Gamma": g,
@@ -82,6 +83,13 @@ def _table(seed):
                         "p_s_sem": math.sqrt(max(n_slips, 1)) / trials,
                         "n_slips": n_slips,
                         "n_trials": trials,
+                        "crystal_intact": 1,
+                        "psi6_start": 0.99,
+                        "psi6_end": 0.98,
+                        "hexagonal_start": 1.0,
+                        "hexagonal_end": 0.99,
+                        "dislocations_start": 0,
+                        "dislocations_end": 0,
                     }
                 )
     return pd.DataFrame(rows)
@@ -93,6 +101,7 @@ def test_thresholds_interpolate_between_bracketing_grid_points():
     for r in ths.itertuples():
         assert r.status == "crossed" and r.Gamma_low < r.Gamma < r.Gamma_high
         assert r.Gamma_high - r.Gamma_low == pytest.approx(0.2)
+    assert (ths["mu_w"] == 0.6).all()
     by = {(r.init, r.N_l, r.criterion): r.Gamma for r in ths.itertuples()}
     # log interpolation of an exponential measure is exact
     assert by[("random", 20, "bouncing")] == pytest.approx(1.1, abs=1e-9)
@@ -107,7 +116,7 @@ def test_segmented_and_arrhenius_fits_cover_the_truth(seed):
     table = _table(seed)
     tfits = fitting.temperature_fits(table, FITS)
     sfits = fitting.slip_fits(table, tfits, FITS)
-    for (init, n_l), tf in tfits.items():
+    for (init, n_l, _mu_w), tf in tfits.items():
         assert tf["regions"] == (["A", "B"] if init == "random" else ["A1", "A2", "B"])
         for true, est, (lo, hi) in zip(
             K_BREAK[init], tf["breakpoints_K_m"], tf["breakpoints_K_m_ci"], strict=True
@@ -115,7 +124,7 @@ def test_segmented_and_arrhenius_fits_cover_the_truth(seed):
             assert lo <= true <= hi, (init, n_l, true, est, lo, hi)
         for true, (lo, hi) in zip(SLOPES[init], tf["slope_ci"], strict=True):
             assert lo <= true <= hi
-        fits = sfits[(init, n_l)]
+        fits = sfits[(init, n_l, _mu_w)]
         for region, true in E_B[init].items():
             af = fits[region]
             assert af.E_b_ci[0] <= true <= af.E_b_ci[1], (init, region, af.E_b, af.E_b_ci)
@@ -130,12 +139,65 @@ def test_summary_rows_carry_paper_values_and_fit_cleanly():
     tfits = fitting.temperature_fits(table, FITS)
     sfits = fitting.slip_fits(table, tfits, FITS)
     df = summary_frame(fitting.summary_rows(table, ths, tfits, sfits)).set_index("quantity")
-    assert df.loc["K_m_break_1[N_l=20,init=random]", "paper_value"] == 3.3
-    assert df.loc["E_b_A2[N_l=40,init=crystal]", "paper_value"] == 130.0
-    assert df.loc["E_b_B[N_l=40,init=crystal]", "paper_value"] == 7.0
-    assert df.loc["E_b_all[N_l=20,init=random]", "paper_value"] == 7.0
-    row = df.loc["Gamma_convection[N_l=20,init=crystal]"]
+    assert df.loc["K_m_break_1[N_l=20,init=random,mu_w=0.6]", "paper_value"] == 3.3
+    assert df.loc["E_b_A2[N_l=40,init=crystal,mu_w=0.6]", "paper_value"] == 130.0
+    assert df.loc["E_b_B[N_l=40,init=crystal,mu_w=0.6]", "paper_value"] == 7.0
+    assert df.loc["E_b_all[N_l=20,init=random,mu_w=0.6]", "paper_value"] == 7.0
+    assert df.loc["psi6_at_measurement_start[N_l=20,Gamma=0.8,init=crystal,mu_w=0.6]",
+                  "value"] == 0.99  # fmt: skip
+    assert df.loc["crystal_intact_points[N_l=20,init=crystal,mu_w=0.6]", "value"] == 17
+    row = df.loc["Gamma_convection[N_l=20,init=crystal,mu_w=0.6]"]
     assert row["ci_low"] == pytest.approx(2.6) and row["ci_high"] == pytest.approx(2.8)
     assert (df["study"] == "box").all()
     ds = fitting.fits_datasets(table, ths, tfits, sfits)
     assert set(ds) == {"phase_diagram", "temperature", "slips"}
+
+
+def _fit_all(table):
+    ths = fitting.thresholds_table(table, DETECTION)
+    tfits = fitting.temperature_fits(table, FITS)
+    sfits = fitting.slip_fits(table, tfits, FITS)
+    return ths, tfits, sfits
+
+
+def test_a_broken_crystal_point_is_left_out_of_the_crystal_fits():
+    table = _table(5)
+    broken = (table["init"] == "crystal") & (table["Gamma"] == 1.6)
+    # a shattered bed: slips everywhere, hot, convecting; flagged by the crystal check
+    table.loc[broken, ["crystal_intact", "p_s", "n_slips", "T_g", "s_c"]] = [
+        0,
+        0.3,
+        6000,
+        5.0,
+        10.0,
+    ]
+    ths, tfits, sfits = _fit_all(table)
+    ths0, tfits0, sfits0 = _fit_all(table[~broken].reset_index(drop=True))
+    pd.testing.assert_frame_equal(ths, ths0)
+    for key in tfits0:
+        assert np.array_equal(tfits[key]["breakpoints_K_m"], tfits0[key]["breakpoints_K_m"])
+        for region, af in sfits0[key].items():
+            assert sfits[key][region].E_b == af.E_b or math.isnan(af.E_b)
+    df = summary_frame(fitting.summary_rows(table, ths, tfits, sfits)).set_index("quantity")
+    row = df.loc["crystal_intact_points[N_l=20,init=crystal,mu_w=0.6]"]
+    assert (row["value"], row["n"]) == (16, 17)
+    # without the flag the same point does change the crystal fits
+    table.loc[broken, "crystal_intact"] = 1
+    ths1, _, _ = _fit_all(table)
+    assert not ths1.equals(ths0)
+
+
+def test_wall_friction_values_are_separate_groups():
+    a, b = _table(6, mu_w=0.6), _table(7, mu_w=0.0)
+    both = pd.concat([a, b], ignore_index=True)
+    ths, tfits, sfits = _fit_all(both)
+    ths_a, tfits_a, sfits_a = _fit_all(a)
+    assert set(tfits) == set(tfits_a) | {(i, n, 0.0) for i, n, _ in tfits_a}
+    sel = ths[ths["mu_w"] == 0.6].reset_index(drop=True)
+    pd.testing.assert_frame_equal(sel, ths_a)
+    for key, tf in tfits_a.items():
+        assert np.array_equal(tfits[key]["breakpoints_K_m"], tf["breakpoints_K_m"])
+    df = summary_frame(fitting.summary_rows(both, ths, tfits, sfits)).set_index("quantity")
+    # the paper's numbers stand beside the rows of its own wall friction only
+    assert df.loc["E_b_all[N_l=20,init=random,mu_w=0.6]", "paper_value"] == 7.0
+    assert pd.isna(df.loc["E_b_all[N_l=20,init=random,mu_w=0.0]", "paper_value"])

@@ -12,15 +12,17 @@ from .conftest import SECTION
 
 @pytest.mark.parametrize("gamma", [0.8, 1.0, 2.2, 3.25, 0.1 + 0.2])
 def test_point_name_round_trips_exactly(gamma):
-    name = layout.point_name(20, gamma, "crystal")
-    assert layout.parse_point(name) == (20, gamma, "crystal")
+    name = layout.point_name(20, gamma, "crystal", 0.1 + gamma)
+    assert layout.parse_point(name) == (20, gamma, "crystal", 0.1 + gamma)
 
 
 def test_bad_point_names_are_refused():
     with pytest.raises(ValueError):
-        layout.parse_point("N_l=20,Gamma=2.2,init=glass")
+        layout.parse_point("N_l=20,Gamma=2.2,init=glass,mu_w=0.6")
     with pytest.raises(ValueError):
-        layout.point_name(20, 2.2, "glass")
+        layout.parse_point("N_l=20,Gamma=2.2,init=crystal")
+    with pytest.raises(ValueError):
+        layout.point_name(20, 2.2, "glass", 0.6)
 
 
 def test_run_files_cover_points_replicas_and_parts():
@@ -31,7 +33,7 @@ def test_run_files_cover_points_replicas_and_parts():
     files = layout.run_files(sec)
     # 1 N_l x 2 inits x 2 Γ points, 2 replicas, ceil(5/2) = 3 parts
     assert len(files) == 4 * 2 * 3 == len(set(files))
-    assert "runs/N_l=5,Gamma=2.0,init=random/replica_0001.part_002.nc" in files
+    assert "runs/N_l=5,Gamma=2.0,init=random,mu_w=0.6/replica_0001.part_002.nc" in files
     assert [list(layout.part_periods(sec, p)) for p in range(3)] == [[0, 1], [2, 3], [4]]
 
 
@@ -39,21 +41,38 @@ def test_growing_measured_periods_by_whole_parts_keeps_earlier_part_params():
     sec = copy.deepcopy(SECTION)
     sec["protocol"]["measured_periods"] = 4
     sec["protocol"]["periods_per_part"] = 2
-    before = [layout.runs_params(sec, p) for p in range(2)]
+    before = [layout.runs_params(sec, p, 0.6) for p in range(2)]
     sec["protocol"]["measured_periods"] = 6
-    after = [layout.runs_params(sec, p) for p in range(3)]
+    after = [layout.runs_params(sec, p, 0.6) for p in range(3)]
     assert after[:2] == before
     assert after[2]["part_periods"] == [4, 6]
     # a physics edit changes every part
     sec["physics"]["mu"] = 0.5
-    assert layout.runs_params(sec, 0) != after[0]
+    assert layout.runs_params(sec, 0, 0.6) != after[0]
+
+
+def test_added_wall_friction_adds_points_and_leaves_the_others_untouched():
+    sec = copy.deepcopy(SECTION)
+    before = {f: layout.runs_params(sec, 0, 0.6) for f in layout.run_files(sec)}
+    sec["grid"]["mu_side_walls"] = [0.6, 0.0]
+    after = layout.run_files(sec)
+    assert len(after) == 2 * len(before) and set(before) <= set(after)
+    # the old points keep their parameters (and so their files); the new ones have theirs
+    assert all(layout.runs_params(sec, 0, 0.6) == p for p in before.values())
+    new = layout.runs_params(sec, 0, 0.0)
+    assert new["physics"]["mu_side_walls"] == 0.0
+    assert {k: v for k, v in new["physics"].items() if k != "mu_side_walls"} == {
+        k: v for k, v in before[next(iter(before))]["physics"].items() if k != "mu_side_walls"
+    }
+    assert layout.init_files(sec)[-1] == "init/N_l=5,init=random,mu_w=0.0/replica_0000.nc"
 
 
 def test_stage_subsets_hold_only_what_the_stage_reads():
-    assert set(layout.init_params(SECTION)) == {"physics", "init"}
+    assert set(layout.init_params(SECTION, 0.6)) == {"physics", "init"}
+    assert layout.init_params(SECTION, 0.2)["physics"]["mu_side_walls"] == 0.2
     assert set(layout.ensemble_params(SECTION)) == {"Lx", "detection", "slips", "order"}
     assert set(layout.fits_params(SECTION)) == {"detection", "fits"}
-    assert "resources" not in str(layout.runs_params(SECTION, 0))
+    assert "resources" not in str(layout.runs_params(SECTION, 0, 0.6))
 
 
 @pytest.mark.parametrize("scale", ["config/config.yaml", "config/quick.yaml", "config/paper.yaml"])

@@ -12,8 +12,9 @@ S = 2 * P.N * P.r
 
 def test_longwave_coefficients_of_eq38():
     co = c.longwave_coefficients(P)
+    # Eq. (38): A₋ = 6.5, not the text's 13.5 (docs/column.md)
     assert (co.A_plus, co.A_minus) == pytest.approx((2.5, 6.5), rel=1e-14)
-    assert co.B == pytest.approx(-1 / P.h, rel=1e-14)  # SPEC: not the text's 13.5 for A₋
+    assert co.B == pytest.approx(-1 / P.h, rel=1e-14)
     assert co.gamma == pytest.approx(co.A_minus / (36 * co.C1))
 
 
@@ -115,7 +116,7 @@ def test_bsr_stays_at_rest_without_forces():
 
 
 def test_bsr_as_printed_has_no_rest_state():
-    """The even kernel of Eq. (45) is a downward body force at rest (SPEC, BSR note)."""
+    """The even kernel of Eq. (45) is a downward body force at rest (docs/column.md, BSR)."""
     dz = P.h / 8
     z = (np.arange(int(round((S + 4 * P.h) / dz))) + 0.5) * dz
     F = c.bsr_kernel_force(P, z, np.zeros_like(z), dz)

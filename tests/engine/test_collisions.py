@@ -4,9 +4,9 @@ Analytic values (both laws are linear spring-dashpots in the normal direction, a
 force is not clipped, so a contact lasts exactly half a period of the damped oscillator
 ``m x'' + c x' + k x = 0``):
 
-* drum law (SPEC §1): ``omega² = k_n/m_ij - gamma_n²/(4 m_ij²)``, ``tau = pi/omega``,
+* drum law (docs/drum.md): ``omega² = k_n/m_ij - gamma_n²/(4 m_ij²)``, ``tau = pi/omega``,
   ``e = exp(-gamma_n tau / (2 m_ij))``;
-* box law (SPEC §3): ``omega² = kappa_n/m_eff - gamma_n²/4``, ``t_c = pi/omega``,
+* box law (docs/box.md): ``omega² = kappa_n/m_eff - gamma_n²/4``, ``t_c = pi/omega``,
   ``e = exp(-gamma_n t_c / 2)``,
 
 with ``m_ij = m_i m_j/(m_i + m_j)`` (``m_i`` against a wall, whose mass is infinite).
@@ -16,7 +16,7 @@ ODE integrated to 1e-12 (``reference.contact_ode``); for the box law the normal 
 does not depend on the tangential force, and the turn of the normal during a contact of
 2e-3 time units is below 1e-5 rad, so the closed form is the reference there too.
 
-Criterion (issue 3): at the study's step / 100 the restitution and contact time agree
+Criterion: at the study's step / 100 the restitution and contact time agree
 to 1e-3 relative; the step-size error shrinks from the study's step to step / 100.
 """
 

@@ -7,7 +7,7 @@ from granpipe.engine import FlatWalls, Simulation, WallDisks
 from granpipe.engine import kernels as K
 from tests.engine.conftest import DRUM_LAW, DT_DRUM
 
-OMEGA = -2.4417e-4  # drum of SPEC §1, clockwise
+OMEGA = -2.4417e-4  # drum of docs/drum.md, clockwise
 
 
 def twin_error(sim, r0, v0, radii, masses, is_wall, du, eps, steps):

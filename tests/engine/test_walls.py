@@ -14,7 +14,7 @@ BOX_LAW = BoxLaw(kappa_n=1e6, kappa_t=1e4, gamma_n=100.0, gamma_t=100.0, mu=0.6)
 
 def test_drum_wall_disks_turn_rigidly_and_stop_at_the_switch():
     ring, radius = ring_of_disks(150, 1.3846, centre=(1.0, 2.0))
-    assert radius == pytest.approx(33.057, abs=5e-4)  # SPEC §1
+    assert radius == pytest.approx(33.057, abs=5e-4)  # docs/drum.md
     omega = -2.4417e-4 * 1000  # faster than the study so that the angle is measurable
     t_switch = 400 * DT_DRUM
     walls = WallDisks(centre=(1.0, 2.0), omega=omega, omega_after=0.0, t_switch=t_switch)

@@ -282,6 +282,34 @@ def test_adding_a_drum_period_plans_only_its_point(quick):
     )  # fmt: skip
 
 
+def test_adding_a_wall_friction_plans_only_its_points(quick):
+    """A second side-wall friction is its own set of initial states and points: only their
+    jobs, and the fits and figures that gather every point, are planned."""
+    workdir, base = quick
+    if "box" not in studies(base):
+        pytest.skip("the box study is not part of this scale")
+    one = copy.deepcopy(base)
+    one["studies"] = ["box"]
+    two = copy.deepcopy(one)
+    grid = two["box"]["grid"]
+    grid["mu_side_walls"] = [*grid["mu_side_walls"], 0.25]
+    before = planned_jobs(workdir, write_config(workdir, one, "one_wall.yaml"))
+    jobs = planned_jobs(workdir, write_config(workdir, two, "two_walls.yaml"))
+    states = len(grid["N_l"]) * len(grid["inits"]) * grid["replicas"]
+    points = len(grid["N_l"]) * len(grid["inits"]) * len(grid["Gamma"])
+    parts = -(-base["box"]["protocol"]["measured_periods"] // base["box"]["protocol"][
+        "periods_per_part"])  # fmt: skip
+    added = {k: jobs.get(k, 0) - before.get(k, 0) for k in set(jobs) | set(before)}
+    added = {k: v for k, v in added.items() if v}
+    for gathering in ("box_fits", "box_figures", "all"):
+        assert jobs.get(gathering) == 1
+        added.pop(gathering, None)
+    assert added == {
+        "box_init": states, "box_runs": points * grid["replicas"] * parts,
+        "box_ensemble": points,
+    }, (before, jobs)  # fmt: skip
+
+
 def test_sigkill_mid_write_leaves_nothing_and_rerun_is_identical(quick):
     workdir, base = quick
     study = studies(base)[0]

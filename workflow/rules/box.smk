@@ -1,7 +1,7 @@
 # box study (docs/box.md): stages init -> runs -> ensemble -> fits -> figures.
 # Rules only call `granpipe box <stage>`; params carry the exact config subset each stage
 # depends on (granpipe.box.layout.*_params), so a config edit reruns exactly what it
-# touches: physics/init -> everything; protocol -> runs onwards (measured_periods only adds
+# touches: physics/init -> everything (grid.mu_side_walls: the points of each value); protocol -> runs onwards (measured_periods only adds
 # or drops whole parts); detection/slips/order -> ensemble onwards; fits -> fits, figures.
 # Point lists come from granpipe.box.layout, the same functions `granpipe status` uses.
 
@@ -16,19 +16,20 @@ if "box" in config:
         box_nl=r"\d+",
         box_gamma=r"[0-9.]+(e[-+]?[0-9]+)?",
         box_init=r"crystal|random",
+        box_muw=r"[0-9.]+(e[-+]?[0-9]+)?",
         box_rep=r"\d{4}",
         box_part=r"\d{3}",
 
     rule box_init:
         """Crystal (relaxed lattice) or random (placement, fall, settle) initial state."""
         output:
-            out("box", "init", "N_l={box_nl},init={box_init}", "replica_{box_rep}.nc"),
+            out("box", "init", "N_l={box_nl},init={box_init},mu_w={box_muw}", "replica_{box_rep}.nc"),
         params:
-            json=lambda w: as_json(box_layout.init_params(BOX)),
+            json=lambda w: as_json(box_layout.init_params(BOX, float(w.box_muw))),
         conda:
             "../envs/granpipe.yaml"
         log:
-            log_path("box", "init", "N_l={box_nl},init={box_init}", "replica_{box_rep}.log"),
+            log_path("box", "init", "N_l={box_nl},init={box_init},mu_w={box_muw}", "replica_{box_rep}.log"),
         threads: 1
         resources:
             runtime=lambda w: box_layout.sim_minutes(BOX, int(w.box_nl), 0),
@@ -52,11 +53,13 @@ if "box" in config:
             out(
                 "box",
                 "runs",
-                "N_l={box_nl},Gamma={box_gamma},init={box_init}",
+                "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_muw}",
                 "replica_{box_rep}.part_{box_part}.nc",
             ),
         params:
-            json=lambda w: as_json(box_layout.runs_params(BOX, int(w.box_part))),
+            json=lambda w: as_json(
+                box_layout.runs_params(BOX, int(w.box_part), float(w.box_muw))
+            ),
             previous=lambda w, input: (
                 f"--previous {input.previous}" if "previous" in input.keys() else ""
             ),
@@ -66,7 +69,7 @@ if "box" in config:
             log_path(
                 "box",
                 "runs",
-                "N_l={box_nl},Gamma={box_gamma},init={box_init}",
+                "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_muw}",
                 "replica_{box_rep}.part_{box_part}.log",
             ),
         threads: 1
@@ -87,17 +90,17 @@ if "box" in config:
             runs=lambda w: [
                 out("box", f)
                 for f in box_layout.point_run_files(
-                    BOX, int(w.box_nl), float(w.box_gamma), w.box_init
+                    BOX, int(w.box_nl), float(w.box_gamma), w.box_init, float(w.box_muw)
                 )
             ],
         output:
-            out("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init}.nc"),
+            out("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_muw}.nc"),
         params:
             json=lambda w: as_json(box_layout.ensemble_params(BOX)),
         conda:
             "../envs/granpipe.yaml"
         log:
-            log_path("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init}.log"),
+            log_path("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_muw}.log"),
         threads: 1
         resources:
             runtime=10,
@@ -134,7 +137,8 @@ if "box" in config:
             " {input:q} > {log:q} 2>&1"
 
     rule box_figures:
-        """Figures 1, 3, 4 and 5 of the paper (PNG for the report, PDF beside them)."""
+        """Figures 1, 3, 4 and 5 of the paper and the thresholds against the side walls' friction
+        (PNG for the report, PDF beside them)."""
         input:
             fits=rules.box_fits.output,
             init=BOX_INIT_FILES,
@@ -159,6 +163,11 @@ if "box" in config:
                 out("box", "figures", "fig5_slip_probability.png"),
                 category="box",
                 caption="../report/box_fig5.rst",
+            ),
+            fig6=report(
+                out("box", "figures", "fig6_wall_friction.png"),
+                category="box",
+                caption="../report/box_fig6.rst",
             ),
             pdf=[out("box", f) for f in box_layout.figure_files("pdf")],
         params:

@@ -14,6 +14,9 @@ Fortini & Huang (2015), Appendix B and Sec. V, with the corrections of docs/box.
   period (Sec. V and note [36]).
 * :func:`bond_order`, :func:`local_order`, :func:`classify_order` — ψ6 and ψ4
   per particle (freud), hexagonal / square / disordered (Fig. 1).
+* :func:`bulk_mask`, :func:`delaunay_coordination`, :func:`crystal_check` — is a crystal
+  start still a defect-free crystal: bulk |ψ6|, hexagonal fraction and dislocations
+  (bulk disks with other than six Delaunay neighbours).
 
 Coordinates: positions are (N, 2) arrays of (x, z) [σ], z upwards; heights of
 the plate z_b [σ]. Everything here is geometry on given arrays: no simulation.
@@ -42,6 +45,10 @@ __all__ = [
     "local_order",
     "classify_order",
     "ORDER_LABELS",
+    "bulk_mask",
+    "delaunay_coordination",
+    "CrystalCheck",
+    "crystal_check",
     "CONVECTION_THRESHOLD",
     "BOUNCING_THRESHOLD",
 ]
@@ -483,3 +490,96 @@ def local_order(
     psi6, psi4, n = _local_order(positions, (6, 4), r_max, n_neighbours, periodic_box)
     order = classify_order(psi6, psi4, n, threshold=threshold)
     return {"psi6": psi6, "psi4": psi4, "n": n, "order": order}
+
+
+# ------------------------------------------------------------- crystal check
+def bulk_mask(positions: np.ndarray, lx: float, depth: float = 2.0) -> np.ndarray:
+    """(N,) bool: disks more than ``depth`` σ from the side walls (x = 0, ``lx``), from the
+    lowest disk and from the free surface (:func:`free_surface_height`)."""
+    pos = np.asarray(positions, dtype=np.float64)
+    top = free_surface_height(pos)
+    zmin = pos[:, 1].min()
+    return (
+        (pos[:, 0] > depth)
+        & (pos[:, 0] < lx - depth)
+        & (pos[:, 1] > zmin + depth)
+        & (pos[:, 1] < top - depth)
+    )
+
+
+def delaunay_coordination(positions: np.ndarray) -> np.ndarray:
+    """(N,) int: Delaunay neighbours of every point (scipy.spatial.Delaunay).
+
+    Six for every interior site of a triangular lattice; a dislocation is a bound pair
+    of a five- and a seven-fold site. Unlike a distance cutoff, the count does not change
+    under small thermal displacements of a dense triangular packing (its Delaunay
+    triangulation has no four co-circular points).
+    """
+    from scipy.spatial import Delaunay
+
+    pts = np.asarray(positions, dtype=np.float64)
+    indptr, _ = Delaunay(pts).vertex_neighbor_vertices
+    return np.diff(indptr).astype(np.int64)
+
+
+@dataclass(frozen=True)
+class CrystalCheck:
+    """Order of a bed's bulk (:func:`crystal_check`).
+
+    Attributes
+    ----------
+    psi6 : float
+        Mean |ψ6| of the bulk disks (NaN without bulk).
+    hexagonal : float
+        Fraction of bulk disks classed hexagonal (:func:`classify_order`).
+    dislocations : int
+        Bulk disks with other than six Delaunay neighbours (each dislocation core
+        contributes a 5-7 pair, so this is about twice the number of dislocations).
+    n_bulk : int
+    intact : bool
+        ``psi6 >= min_psi6`` and no dislocation: still the defect-free crystal.
+    """
+
+    psi6: float
+    hexagonal: float
+    dislocations: int
+    n_bulk: int
+    intact: bool
+
+
+def crystal_check(
+    positions: np.ndarray,
+    lx: float,
+    *,
+    r_max: float = 1.2,
+    threshold: float = 0.7,
+    min_psi6: float = 0.9,
+    depth: float = 2.0,
+) -> CrystalCheck:
+    """Whether a bed's bulk (:func:`bulk_mask`) is still a defect-free hexagonal crystal.
+
+    Parameters
+    ----------
+    positions : (N, 2) float [σ]
+    lx : float [σ]
+        Box width.
+    r_max, threshold
+        ψ6 neighbour radius and hexagonal class threshold (:func:`local_order`).
+    min_psi6 : float
+        Least bulk mean |ψ6| of an intact crystal.
+    depth : float [σ]
+        Bulk window (:func:`bulk_mask`).
+    """
+    pos = np.asarray(positions, dtype=np.float64)
+    inside = bulk_mask(pos, lx, depth)
+    lo = local_order(pos, r_max=r_max, threshold=threshold)
+    a6 = np.abs(lo["psi6"][inside])
+    a6 = a6[np.isfinite(a6)]
+    n_bulk = int(inside.sum())
+    if n_bulk == 0:
+        return CrystalCheck(float("nan"), float("nan"), 0, 0, False)
+    psi6 = float(a6.mean()) if a6.size else float("nan")
+    hexagonal = float(np.mean(lo["order"][inside] == 1))
+    dislocations = int(np.count_nonzero(delaunay_coordination(pos)[inside] != 6))
+    intact = bool(np.isfinite(psi6) and psi6 >= min_psi6 and dislocations == 0)
+    return CrystalCheck(psi6, hexagonal, dislocations, n_bulk, intact)

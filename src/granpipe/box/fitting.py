@@ -3,19 +3,23 @@
 Glue between the per-point ensemble files and :mod:`granpipe.analysis.thresholds`,
 :mod:`granpipe.analysis.regression` and :mod:`granpipe.analysis.summary`:
 
-* :func:`points_table` — one row per point (N_l, Γ, init) with its measures.
-* :func:`thresholds` — per (N_l, init): Γ of bouncing (s_b > σ/30, Appendix B with
+* :func:`points_table` — one row per point (N_l, Γ, init, μ_w) with its measures; a
+  crystal point whose bulk is no longer a defect-free crystal when measurement begins
+  (``crystal_intact`` = 0) is kept in the table for the figures but left out of every
+  crystal fit (column ``used``).
+* :func:`thresholds` — per (N_l, init, μ_w): Γ of bouncing (s_b > σ/30, Appendix B with
   our correction, docs/box.md), of detachment (the bed off the plate for more than the set
   fraction of the cycle; docs/box.md, hazard (iii)) and of convection (s_c > σ);
   linear interpolation
   of log s between the bracketing grid points, which are reported.
-* :func:`temperature_fits` — per (N_l, init): continuous segmented regression of
+* :func:`temperature_fits` — per (N_l, init, μ_w): continuous segmented regression of
   ln T_g* on ln K_m with ``breakpoints_random`` (A | B) or ``breakpoints_crystal``
   (A1 | A2 | B) breakpoints (Fig. 4), breakpoints as K_m with profile-likelihood CIs.
-* :func:`slip_fits` — per (N_l, init): Arrhenius fits ``p_s ∝ exp(−E_b/K_m)`` over the
+* :func:`slip_fits` — per (N_l, init, μ_w): Arrhenius fits ``p_s ∝ exp(−E_b/K_m)`` over the
   whole range and in each T_g* region (Fig. 5); regions without slips give NaN with
   zero-count upper bounds.
-* :func:`summary_rows` — rows of ``summary.csv`` beside the paper's numbers.
+* :func:`summary_rows` — rows of ``summary.csv`` beside the paper's numbers (given on the
+  rows of the paper's side-wall friction, Table I's 0.6).
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ __all__ = [
     "temperature_fits",
     "slip_fits",
     "summary_rows",
+    "used_mask",
     "REGION_NAMES",
     "PAPER",
 ]
@@ -53,16 +58,30 @@ PAPER = {
     "E_b_crystal_B": 7.0,
     "Gamma_bouncing": 1.0,
 }
+PAPER_MU_W = 0.6
+"""Table I's wall-particle Coulomb coefficient: the rows compared with the paper."""
 
 _COLUMNS = (
     "s_c", "s_b", "s_b_printed", "detachment_fraction", "max_gap", "T_g", "T_g_sem", "p_s",
-    "p_s_sem", "n_slips", "n_trials", "psi6_start", "psi6_end", "launch_ratio",
+    "p_s_sem", "n_slips", "n_trials", "psi6_start", "psi6_end", "hexagonal_start",
+    "hexagonal_end", "dislocations_start", "dislocations_end", "launch_ratio",
     "convection", "bouncing", "detached", "crystal_intact",
 )  # fmt: skip
 
+#: Per-point rows of the crystal check: summary name -> table column.
+ORDER_ROWS = {
+    "psi6_at_measurement_start": "psi6_start",
+    "psi6_at_measurement_end": "psi6_end",
+    "hexagonal_at_measurement_start": "hexagonal_start",
+    "hexagonal_at_measurement_end": "hexagonal_end",
+    "dislocations_at_measurement_start": "dislocations_start",
+    "dislocations_at_measurement_end": "dislocations_end",
+}
+
 
 def points_table(files: Sequence[str | Path]) -> pd.DataFrame:
-    """One row per ensemble file: N_l, N, Gamma, K_m, init, the measures and the cost."""
+    """One row per ensemble file: N_l, N, Gamma, K_m, init, mu_w, the measures, the cost
+    and ``used`` (False for a crystal point whose crystal broke before measurement)."""
     rows = []
     for f in files:
         ds = read_dataset(f)
@@ -73,6 +92,7 @@ def points_table(files: Sequence[str | Path]) -> pd.DataFrame:
             "Gamma": float(ds.attrs["Gamma"]),
             "K_m": float(ds.attrs["K_m"]),
             "init": str(ds.attrs["init"]),
+            "mu_w": float(ds.attrs["mu_w"]),
             "replicas": int(ds.attrs["replicas"]),
             "measured_periods": int(ds.attrs["measured_periods"]),
             "wall_seconds": float(ds.attrs["wall_seconds"]),
@@ -83,12 +103,24 @@ def points_table(files: Sequence[str | Path]) -> pd.DataFrame:
             row[c] = float(ds[c].values)
         rows.append(row)
     table = pd.DataFrame(rows)
-    return table.sort_values(["init", "N_l", "Gamma"], kind="stable").reset_index(drop=True)
+    table["used"] = used_mask(table)
+    order = ["init", "mu_w", "N_l", "Gamma"]
+    return table.sort_values(order, kind="stable").reset_index(drop=True)
 
 
-def _groups(table: pd.DataFrame):
-    for (init, n_l), g in table.groupby(["init", "N_l"], sort=True):
-        yield init, int(n_l), g.sort_values("Gamma")
+def used_mask(table: pd.DataFrame) -> pd.Series:
+    """True for the points the fits use: every random point, and the crystal points whose
+    crystal was intact when measurement began (``crystal_intact`` = 1)."""
+    return (table["init"] != "crystal") | (table["crystal_intact"] == 1)
+
+
+def _groups(table: pd.DataFrame, used_only: bool = True):
+    """(init, N_l, mu_w, points sorted by Γ) per group; without the points left out of the
+    fits unless ``used_only`` is False."""
+    for (init, mu_w, n_l), g in table.groupby(["init", "mu_w", "N_l"], sort=True):
+        g = g[used_mask(g)] if used_only else g
+        if len(g):
+            yield init, int(n_l), float(mu_w), g.sort_values("Gamma")
 
 
 CRITERIA = {
@@ -102,7 +134,7 @@ CRITERIA = {
 def thresholds_table(table: pd.DataFrame, detection: Mapping) -> pd.DataFrame:
     """Thresholds in Γ per (init, N_l, criterion), with the bracketing grid points."""
     rows = []
-    for init, n_l, g in _groups(table):
+    for init, n_l, mu_w, g in _groups(table):
         for name, (col, key, scale) in CRITERIA.items():
             crit = float(detection[key])
             values = g[col].to_numpy()
@@ -114,6 +146,7 @@ def thresholds_table(table: pd.DataFrame, detection: Mapping) -> pd.DataFrame:
                 {
                     "init": init,
                     "N_l": n_l,
+                    "mu_w": mu_w,
                     "criterion": name,
                     "measure": col,
                     "level": crit,
@@ -130,10 +163,10 @@ def thresholds_table(table: pd.DataFrame, detection: Mapping) -> pd.DataFrame:
 
 
 def temperature_fits(table: pd.DataFrame, fits_cfg: Mapping) -> dict:
-    """Segmented fits of ln T_g* vs ln K_m per (init, N_l): {(init, N_l): dict or None}."""
+    """Segmented fits of ln T_g* vs ln K_m per group: {(init, N_l, mu_w): dict}."""
     out = {}
     level = float(fits_cfg["confidence"])
-    for init, n_l, g in _groups(table):
+    for init, n_l, mu_w, g in _groups(table):
         k = int(fits_cfg[f"breakpoints_{init}"])
         ok = np.isfinite(g["T_g"]) & (g["T_g"] > 0)
         g = g[ok]
@@ -148,10 +181,10 @@ def temperature_fits(table: pd.DataFrame, fits_cfg: Mapping) -> dict:
                 level=level,
             )
         except (ValueError, np.linalg.LinAlgError) as exc:
-            out[(init, n_l)] = {"error": str(exc), "n_points": int(len(g))}
+            out[(init, n_l, mu_w)] = {"error": str(exc), "n_points": int(len(g))}
             continue
         bp, bp_ci = fit.exp_breakpoints()
-        out[(init, n_l)] = {
+        out[(init, n_l, mu_w)] = {
             "fit": fit,
             "n_breakpoints": k,
             "breakpoints_K_m": np.atleast_1d(bp),
@@ -168,10 +201,10 @@ def temperature_fits(table: pd.DataFrame, fits_cfg: Mapping) -> dict:
 
 
 def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
-    """Arrhenius fits per (init, N_l): {(init, N_l): {region: ArrheniusFit}} incl. "all"."""
+    """Arrhenius fits per group: {(init, N_l, mu_w): {region: ArrheniusFit}} incl. "all"."""
     level = float(fits_cfg["confidence"])
     out = {}
-    for init, n_l, g in _groups(table):
+    for init, n_l, mu_w, g in _groups(table):
         kw = {
             "p_s": g["p_s"].to_numpy(),
             "n_slips": g["n_slips"].to_numpy(),
@@ -191,7 +224,7 @@ def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
             fits["all"] = regression.arrhenius_fit(K, level=level, **kw)
         except ValueError:
             pass
-        tf = tfits.get((init, n_l)) or {}
+        tf = tfits.get((init, n_l, mu_w)) or {}
         if "fit" in tf and tf["n_breakpoints"] > 0:
             try:
                 fits.update(
@@ -201,12 +234,17 @@ def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
                 )
             except ValueError:
                 pass
-        out[(init, n_l)] = fits
+        out[(init, n_l, mu_w)] = fits
     return out
 
 
-def _fmt_q(name: str, init: str, n_l: int) -> str:
-    return f"{name}[N_l={n_l},init={init}]"
+def _fmt_q(name: str, init: str, n_l: int, mu_w: float) -> str:
+    return f"{name}[N_l={n_l},init={init},mu_w={mu_w!r}]"
+
+
+def _paper(value, mu_w: float):
+    """The paper's value on rows of its own side-wall friction, None on the others."""
+    return value if math.isclose(mu_w, PAPER_MU_W) else None
 
 
 def summary_rows(
@@ -214,6 +252,18 @@ def summary_rows(
 ) -> list[dict]:
     """Rows of ``summary.csv`` (docs/results.md); quantities name N_l and init."""
     rows = []
+    for r in table.itertuples(index=False):
+        for name, col in ORDER_ROWS.items():
+            rows.append(
+                {"study": "box", "quantity": f"{name}[{r.point}]", "value": getattr(r, col),
+                 "unit": "1", "n": r.replicas}
+            )  # fmt: skip
+    for init, n_l, mu_w, g in _groups(table, used_only=False):
+        if init == "crystal":
+            rows.append(
+                {"study": "box", "quantity": _fmt_q("crystal_intact_points", init, n_l, mu_w),
+                 "value": int(used_mask(g).sum()), "unit": "1", "n": len(g)}
+            )  # fmt: skip
     for r in ths.itertuples(index=False):
         th = thresholds.Threshold(
             r.Gamma, r.Gamma_low, r.Gamma_high, status=r.status, n_crossings=r.n_crossings
@@ -221,12 +271,9 @@ def summary_rows(
         paper = PAPER["Gamma_bouncing"] if r.criterion in ("bouncing", "detachment") else None
         if r.criterion == "convection" and r.init == "random":
             paper = math.sqrt(PAPER["K_m_break_random"])
-        rows.append(
-            th.summary_row(
-                "box", _fmt_q(f"Gamma_{r.criterion}", r.init, r.N_l), paper, "1", r.n_points
-            )
-        )
-    for (init, n_l), tf in tfits.items():
+        q = _fmt_q(f"Gamma_{r.criterion}", r.init, r.N_l, r.mu_w)
+        rows.append(th.summary_row("box", q, _paper(paper, r.mu_w), "1", r.n_points))
+    for (init, n_l, mu_w), tf in tfits.items():
         if "fit" not in tf:
             continue
         for i, name in enumerate(["K_m_break_1", "K_m_break_2"][: tf["n_breakpoints"]]):
@@ -235,14 +282,14 @@ def summary_rows(
             rows.append(
                 {
                     "study": "box",
-                    "quantity": _fmt_q(name, init, n_l),
+                    "quantity": _fmt_q(name, init, n_l, mu_w),
                     "value": tf["breakpoints_K_m"][i],
                     "unit": "1",
                     "fit_error": tf["breakpoints_K_m_se"][i],
                     "ci_low": lo,
                     "ci_high": hi,
                     "n": tf["n_points"],
-                    "paper_value": paper,
+                    "paper_value": _paper(paper, mu_w),
                 }
             )
         for i, region in enumerate(tf["regions"]):
@@ -250,7 +297,7 @@ def summary_rows(
             rows.append(
                 {
                     "study": "box",
-                    "quantity": _fmt_q(f"T_g_slope_{region}", init, n_l),
+                    "quantity": _fmt_q(f"T_g_slope_{region}", init, n_l, mu_w),
                     "value": tf["slopes"][i],
                     "unit": "1",
                     "fit_error": tf["slope_se"][i],
@@ -259,13 +306,13 @@ def summary_rows(
                     "n": tf["n_points"],
                 }
             )
-    for (init, n_l), fits in sfits.items():
+    for (init, n_l, mu_w), fits in sfits.items():
         for region, af in fits.items():
-            paper = PAPER.get(f"E_b_{init}_{region}")
+            paper = _paper(PAPER.get(f"E_b_{init}_{region}"), mu_w)
             rows.append(
                 {
                     "study": "box",
-                    "quantity": _fmt_q(f"E_b_{region}", init, n_l),
+                    "quantity": _fmt_q(f"E_b_{region}", init, n_l, mu_w),
                     "value": af.E_b,
                     "unit": "1",
                     "fit_error": af.E_b_se,
@@ -275,11 +322,11 @@ def summary_rows(
                     "paper_value": paper,
                 }
             )
-    for init, n_l, g in _groups(table):
+    for init, n_l, mu_w, g in _groups(table, used_only=False):
         rows.append(
             {
                 "study": "box",
-                "quantity": _fmt_q("cost_ns_per_particle_step", init, n_l),
+                "quantity": _fmt_q("cost_ns_per_particle_step", init, n_l, mu_w),
                 "value": float(1e9 * g["wall_seconds"].sum() / max((g["steps"] * g["N"]).sum(), 1)),
                 "unit": "ns",
                 "n": len(g),
@@ -316,7 +363,16 @@ def fits_datasets(
                 ths[c].to_numpy(dtype=float),
                 lab("1", f"threshold {c}"),
             )
-            for c in ("N_l", "level", "Gamma", "K_m", "Gamma_low", "Gamma_high", "n_crossings")
+            for c in (
+                "N_l",
+                "mu_w",
+                "level",
+                "Gamma",
+                "K_m",
+                "Gamma_low",
+                "Gamma_high",
+                "n_crossings",
+            )  # fmt: skip
         },
         coords={
             "threshold": ("threshold", np.arange(len(ths)), lab("1", "threshold index")),
@@ -329,34 +385,36 @@ def fits_datasets(
     th["threshold_N_l"].attrs["units"] = "1/sigma"
     phase = xr.merge([pts, th])
     trows = []
-    for (init, n_l), tf in tfits.items():
+    for (init, n_l, mu_w), tf in tfits.items():
         if "fit" not in tf:
             continue
         for i in range(tf["n_breakpoints"]):
             trows.append(
-                (init, n_l, "breakpoint", i, tf["breakpoints_K_m"][i],
+                (init, n_l, mu_w, "breakpoint", i, tf["breakpoints_K_m"][i],
                  tf["breakpoints_K_m_se"][i], *tf["breakpoints_K_m_ci"][i])
             )  # fmt: skip
         for i in range(len(tf["slopes"])):
             trows.append(
-                (init, n_l, f"slope_{tf['regions'][i]}", i, tf["slopes"][i], tf["slope_se"][i],
-                 *tf["slope_ci"][i])
+                (init, n_l, mu_w, f"slope_{tf['regions'][i]}", i, tf["slopes"][i],
+                 tf["slope_se"][i], *tf["slope_ci"][i])
             )  # fmt: skip
-        trows.append((init, n_l, "intercept", 0, tf["fit"].intercept, math.nan, math.nan, math.nan))
+        trows.append(
+            (init, n_l, mu_w, "intercept", 0, tf["fit"].intercept, math.nan, math.nan, math.nan)
+        )
     temp = _rows_dataset(trows, "temperature fit of ln T_g* on ln K_m")
     srows = []
-    for (init, n_l), fits in sfits.items():
+    for (init, n_l, mu_w), fits in sfits.items():
         for region, af in fits.items():
+            srows.append((init, n_l, mu_w, f"E_b_{region}", 0, af.E_b, af.E_b_se, *af.E_b_ci))
             srows.append(
-                (init, n_l, f"E_b_{region}", 0, af.E_b, af.E_b_se, af.E_b_ci[0], af.E_b_ci[1])
+                (init, n_l, mu_w, f"log_A_{region}", 0, af.log_A, af.log_A_se, np.nan, np.nan)
             )
-            srows.append((init, n_l, f"log_A_{region}", 0, af.log_A, af.log_A_se, np.nan, np.nan))
     slips = _rows_dataset(srows, "Arrhenius fit p_s = A exp(-E_b/K_m)")
     return {"phase_diagram": phase, "temperature": temp, "slips": slips}
 
 
 def _rows_dataset(rows, what: str) -> xr.Dataset:
-    cols = ["init", "N_l", "name", "index", "value", "se", "ci_low", "ci_high"]
+    cols = ["init", "N_l", "mu_w", "name", "index", "value", "se", "ci_low", "ci_high"]
     df = pd.DataFrame(rows, columns=cols)
 
     def lab(units, long_name):
@@ -369,6 +427,7 @@ def _rows_dataset(rows, what: str) -> xr.Dataset:
             "ci_low": ("row", df["ci_low"].to_numpy(float), lab("1", "CI lower bound")),
             "ci_high": ("row", df["ci_high"].to_numpy(float), lab("1", "CI upper bound")),
             "N_l": ("row", df["N_l"].to_numpy(float), lab("1/sigma", "linear density")),
+            "mu_w": ("row", df["mu_w"].to_numpy(float), lab("1", "side-wall friction")),
         },
         coords={
             "row": ("row", np.arange(len(df)), lab("1", "row")),

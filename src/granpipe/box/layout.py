@@ -3,17 +3,19 @@
 One source of truth for ``workflow/rules/box.smk`` (its target lists and wildcards) and
 ``granpipe status`` (:func:`run_files`). Paths are relative to ``results/<scale>/box/``.
 
-A *parameter point* is ``(N_l, Gamma, init)``, named ``N_l=20,Gamma=2.2,init=crystal``
-(:func:`point_name`). An *initial state* is ``(N_l, init)``, named ``N_l=20,init=crystal``;
-every Γ of one ``(N_l, init, replica)`` starts from the same prepared state, so that
-thresholds in Γ compare like with like. A run of ``measured_periods`` periods is split in
-consecutive *parts* of ``periods_per_part`` periods (part 0 also carries the ramp and the
-transient); part ``p`` continues from the final state stored in part ``p - 1``.
+A *parameter point* is ``(N_l, Gamma, init, mu_w)``, named
+``N_l=20,Gamma=2.2,init=crystal,mu_w=0.6`` (:func:`point_name`); ``mu_w`` is the side
+walls' Coulomb coefficient (``grid.mu_side_walls``, one point per value). An *initial
+state* is ``(N_l, init, mu_w)``, named ``N_l=20,init=crystal,mu_w=0.6``; every Γ of one
+``(N_l, init, mu_w, replica)`` starts from the same prepared state, so that thresholds in
+Γ compare like with like. A run of ``measured_periods`` periods is split in consecutive
+*parts* of ``periods_per_part`` periods (part 0 also carries the ramp and the transient);
+part ``p`` continues from the final state stored in part ``p - 1``.
 
-    >>> point_name(20, 2.2, "crystal")
-    'N_l=20,Gamma=2.2,init=crystal'
-    >>> parse_point("N_l=20,Gamma=2.2,init=crystal")
-    (20, 2.2, 'crystal')
+    >>> point_name(20, 2.2, "crystal", 0.6)
+    'N_l=20,Gamma=2.2,init=crystal,mu_w=0.6'
+    >>> parse_point("N_l=20,Gamma=2.2,init=crystal,mu_w=0.6")
+    (20, 2.2, 'crystal', 0.6)
 """
 
 from __future__ import annotations
@@ -27,9 +29,11 @@ __all__ = [
     "INITS",
     "gamma_text",
     "point_name",
+    "physics_for",
     "state_name",
     "parse_point",
     "init_states",
+    "wall_frictions",
     "points",
     "n_parts",
     "part_periods",
@@ -92,7 +96,7 @@ def check(section: Mapping) -> None:
         )
 
 
-POINT_RE = re.compile(r"^N_l=(\d+),Gamma=([0-9.eE+-]+),init=(crystal|random)$")
+POINT_RE = re.compile(r"^N_l=(\d+),Gamma=([0-9.eE+-]+),init=(crystal|random),mu_w=([0-9.eE+-]+)$")
 
 
 def gamma_text(gamma: float) -> str:
@@ -100,42 +104,59 @@ def gamma_text(gamma: float) -> str:
     return repr(float(gamma))
 
 
-def point_name(n_l: int, gamma: float, init: str) -> str:
-    """Name of a parameter point, e.g. ``N_l=20,Gamma=2.2,init=crystal``."""
+def point_name(n_l: int, gamma: float, init: str, mu_w: float) -> str:
+    """Name of a parameter point, e.g. ``N_l=20,Gamma=2.2,init=crystal,mu_w=0.6``."""
     if init not in INITS:
         raise ValueError(f"init must be one of {INITS}, got {init!r}")
-    return f"N_l={int(n_l)},Gamma={gamma_text(gamma)},init={init}"
+    return f"N_l={int(n_l)},Gamma={gamma_text(gamma)},init={init},mu_w={gamma_text(mu_w)}"
 
 
-def state_name(n_l: int, init: str) -> str:
-    """Name of a prepared initial state, e.g. ``N_l=20,init=random``."""
+def state_name(n_l: int, init: str, mu_w: float) -> str:
+    """Name of a prepared initial state, e.g. ``N_l=20,init=random,mu_w=0.6``."""
     if init not in INITS:
         raise ValueError(f"init must be one of {INITS}, got {init!r}")
-    return f"N_l={int(n_l)},init={init}"
+    return f"N_l={int(n_l)},init={init},mu_w={gamma_text(mu_w)}"
 
 
-def parse_point(name: str) -> tuple[int, float, str]:
-    """Inverse of :func:`point_name`: ``(N_l, Gamma, init)``."""
+def parse_point(name: str) -> tuple[int, float, str, float]:
+    """Inverse of :func:`point_name`: ``(N_l, Gamma, init, mu_w)``."""
     m = POINT_RE.match(name)
     if not m:
-        raise ValueError(f"not a box point name: {name!r} (expected N_l=..,Gamma=..,init=..)")
-    return int(m.group(1)), float(m.group(2)), m.group(3)
+        raise ValueError(
+            f"not a box point name: {name!r} (expected N_l=..,Gamma=..,init=..,mu_w=..)"
+        )
+    return int(m.group(1)), float(m.group(2)), m.group(3), float(m.group(4))
 
 
-def init_states(section: Mapping) -> list[tuple[int, str]]:
-    """``(N_l, init)`` pairs of the grid, in config order."""
-    grid = section["grid"]
-    return [(int(n_l), init) for n_l in grid["N_l"] for init in grid["inits"]]
+def wall_frictions(section: Mapping) -> list[float]:
+    """The side walls' Coulomb coefficients of the grid (``grid.mu_side_walls``)."""
+    return [float(m) for m in section["grid"]["mu_side_walls"]]
 
 
-def points(section: Mapping) -> list[tuple[int, float, str]]:
-    """``(N_l, Gamma, init)`` of every parameter point the grid asks for, in config order."""
+def physics_for(section: Mapping, mu_w: float) -> dict:
+    """``box.physics`` of the points with side-wall friction ``mu_w`` (key
+    ``mu_side_walls``, what :func:`granpipe.box.model.box_law` reads)."""
+    return {**dict(section["physics"]), "mu_side_walls": float(mu_w)}
+
+
+def init_states(section: Mapping) -> list[tuple[int, str, float]]:
+    """``(N_l, init, mu_w)`` of the grid, in config order."""
     grid = section["grid"]
     return [
-        (int(n_l), float(g), init)
+        (int(n_l), init, mu_w)
+        for mu_w in wall_frictions(section)
         for n_l in grid["N_l"]
         for init in grid["inits"]
-        for g in grid["Gamma"]
+    ]
+
+
+def points(section: Mapping) -> list[tuple[int, float, str, float]]:
+    """``(N_l, Gamma, init, mu_w)`` of every parameter point the grid asks for, in config
+    order."""
+    return [
+        (n_l, float(g), init, mu_w)
+        for n_l, init, mu_w in init_states(section)
+        for g in section["grid"]["Gamma"]
     ]
 
 
@@ -158,42 +179,40 @@ def replicas(section: Mapping) -> range:
     return range(int(section["grid"]["replicas"]))
 
 
-def init_file(n_l: int, init: str, replica: int) -> str:
-    return f"init/{state_name(n_l, init)}/replica_{int(replica):04d}.nc"
+def init_file(n_l: int, init: str, mu_w: float, replica: int) -> str:
+    return f"init/{state_name(n_l, init, mu_w)}/replica_{int(replica):04d}.nc"
 
 
-def run_file(n_l: int, gamma: float, init: str, replica: int, part: int) -> str:
-    return f"runs/{point_name(n_l, gamma, init)}/replica_{int(replica):04d}.part_{int(part):03d}.nc"
+def run_file(n_l: int, gamma: float, init: str, mu_w: float, replica: int, part: int) -> str:
+    point = point_name(n_l, gamma, init, mu_w)
+    return f"runs/{point}/replica_{int(replica):04d}.part_{int(part):03d}.nc"
 
 
-def ensemble_file(n_l: int, gamma: float, init: str) -> str:
-    return f"ensemble/{point_name(n_l, gamma, init)}.nc"
+def ensemble_file(n_l: int, gamma: float, init: str, mu_w: float) -> str:
+    return f"ensemble/{point_name(n_l, gamma, init, mu_w)}.nc"
 
 
 def init_files(section: Mapping) -> list[str]:
     """Prepared initial states (relative to ``results/<scale>/box/``)."""
-    return [init_file(n, i, r) for n, i in init_states(section) for r in replicas(section)]
+    return [init_file(*s, r) for s in init_states(section) for r in replicas(section)]
 
 
 def run_files(section: Mapping) -> list[str]:
     """Every run file a config section asks for (relative to ``results/<scale>/box/``)."""
+    return [f for pt in points(section) for f in point_run_files(section, *pt)]
+
+
+def point_run_files(section: Mapping, n_l: int, gamma: float, init: str, mu_w: float) -> list[str]:
+    """The run files of one point (all replicas, all parts)."""
     return [
-        run_file(n, g, i, r, p)
-        for n, g, i in points(section)
+        run_file(n_l, gamma, init, mu_w, r, p)
         for r in replicas(section)
         for p in range(n_parts(section))
     ]
 
 
-def point_run_files(section: Mapping, n_l: int, gamma: float, init: str) -> list[str]:
-    """The run files of one point (all replicas, all parts)."""
-    return [
-        run_file(n_l, gamma, init, r, p) for r in replicas(section) for p in range(n_parts(section))
-    ]
-
-
 def ensemble_files(section: Mapping) -> list[str]:
-    return [ensemble_file(n, g, i) for n, g, i in points(section)]
+    return [ensemble_file(*pt) for pt in points(section)]
 
 
 FITS = ("fits/phase_diagram.nc", "fits/temperature.nc", "fits/slips.nc", "fits/summary.csv")
@@ -204,8 +223,10 @@ FIGURES = {
     3: "fig3_phase_diagram",
     4: "fig4_granular_temperature",
     5: "fig5_slip_probability",
+    6: "fig6_wall_friction",
 }
-"""Figure number -> file stem (PNG and PDF of each)."""
+"""Figure number -> file stem (PNG and PDF of each); 6 (thresholds against the side walls'
+friction) is ours."""
 
 
 def fit_files() -> list[str]:
@@ -217,12 +238,13 @@ def figure_files(kind: str = "png") -> list[str]:
 
 
 # ---------------------------------------------------- config subsets of each stage
-def init_params(section: Mapping) -> dict:
-    """Config subset of the init stage: physics and preparation."""
-    return {"physics": dict(section["physics"]), "init": dict(section["init"])}
+def init_params(section: Mapping, mu_w: float) -> dict:
+    """Config subset of the init stage: physics (with the points' ``mu_side_walls``) and
+    preparation."""
+    return {"physics": physics_for(section, mu_w), "init": dict(section["init"])}
 
 
-def runs_params(section: Mapping, part: int) -> dict:
+def runs_params(section: Mapping, part: int, mu_w: float) -> dict:
     """The exact config subset a run part depends on (what the rule passes as --params).
 
     ``measured_periods`` is replaced by the measured periods of this part, so that raising
@@ -231,7 +253,7 @@ def runs_params(section: Mapping, part: int) -> dict:
     proto = {k: v for k, v in section["protocol"].items() if k != "measured_periods"}
     periods = part_periods(section, part)
     return {
-        **init_params(section),
+        **init_params(section, mu_w),
         "protocol": proto,
         "part_periods": [periods.start, periods.stop],
     }
@@ -293,13 +315,15 @@ def sim_minutes(section: Mapping, n_l: int, part: int) -> int:
 
 def run_inputs(section: Mapping, wildcards) -> dict[str, str]:
     """Inputs of a run part (relative paths): the initial state, and the previous part."""
-    n_l, init, rep, part = (
+    n_l, init, mu_w, rep, part = (
         int(wildcards.box_nl),
         wildcards.box_init,
+        float(wildcards.box_muw),
         int(wildcards.box_rep),
         int(wildcards.box_part),
     )
-    files = {"init": init_file(n_l, init, rep)}
+    files = {"init": init_file(n_l, init, mu_w, rep)}
     if part > 0:
-        files["previous"] = run_file(n_l, float(wildcards.box_gamma), init, rep, part - 1)
+        gamma = float(wildcards.box_gamma)
+        files["previous"] = run_file(n_l, gamma, init, mu_w, rep, part - 1)
     return files

@@ -19,7 +19,6 @@ import numpy as np
 import xarray as xr
 
 from ..analysis import box as ab
-from . import prepare
 
 __all__ = ["ReplicaRun", "concat_parts", "point_dataset"]
 
@@ -83,7 +82,7 @@ def point_dataset(
     detection, slips, order : mapping
         The ``box.detection``, ``box.slips``, ``box.order`` config sections.
     lx : float [σ]
-        Box width (for the bulk ψ6 window).
+        Box width (for the bulk window of :func:`granpipe.analysis.box.crystal_check`).
     """
     reps = sorted(runs)
     R = len(reps)
@@ -94,7 +93,8 @@ def point_dataset(
         for k in (
             "s_c", "s_b", "s_b_printed", "detachment_fraction", "max_gap", "T_g", "T_g_sem",
             "p_s", "p_s_sem", "n_slips", "n_trials", "psi6_start", "psi6_end",
-            "hexagonal_start", "hexagonal_end", "launch_ratio", "launch_ratio_disk",
+            "hexagonal_start", "hexagonal_end", "dislocations_start", "dislocations_end",
+            "intact_start", "intact_end", "launch_ratio", "launch_ratio_disk",
             "plate_contact_fraction", "wall_seconds", "steps",
         )
     }  # fmt: skip
@@ -115,6 +115,13 @@ def point_dataset(
         )
         lo0 = ab.local_order(run.frames[0], r_max=r_max, threshold=float(order["threshold"]))
         lo1 = ab.local_order(run.frames[-1], r_max=r_max, threshold=float(order["threshold"]))
+        checks = {
+            when: ab.crystal_check(
+                frame, lx, r_max=r_max, threshold=float(order["threshold"]),
+                min_psi6=float(order["crystal_min_psi6"]),
+            )
+            for when, frame in (("start", run.frames[0]), ("end", run.frames[-1]))
+        }  # fmt: skip
         tr = run.transient
         per_rep["s_c"].append(s_c)
         per_rep["s_b"].append(s_b)
@@ -127,10 +134,11 @@ def point_dataset(
         per_rep["p_s_sem"].append(sl.sem)
         per_rep["n_slips"].append(sl.n_slips)
         per_rep["n_trials"].append(sl.n_trials)
-        per_rep["psi6_start"].append(prepare.bulk_psi6(run.frames[0], lx, r_max=r_max))
-        per_rep["psi6_end"].append(prepare.bulk_psi6(run.frames[-1], lx, r_max=r_max))
-        per_rep["hexagonal_start"].append(float(np.mean(lo0["order"] == 1)))
-        per_rep["hexagonal_end"].append(float(np.mean(lo1["order"] == 1)))
+        for when, c in checks.items():
+            per_rep[f"psi6_{when}"].append(c.psi6)
+            per_rep[f"hexagonal_{when}"].append(c.hexagonal)
+            per_rep[f"dislocations_{when}"].append(c.dislocations)
+            per_rep[f"intact_{when}"].append(int(c.intact))
         if tr and amp_omega > 0:
             per_rep["launch_ratio"].append(float(np.max(tr["vz_cm"]) / amp_omega))
             per_rep["launch_ratio_disk"].append(float(np.max(tr["max_vz"]) / amp_omega))
@@ -176,8 +184,12 @@ def point_dataset(
         "n_trials": ("1", "bulk disk-periods examined"),
         "psi6_start": ("1", "bulk mean |psi6| at the start of the measurement"),
         "psi6_end": ("1", "bulk mean |psi6| at the end of the measurement"),
-        "hexagonal_start": ("1", "fraction of disks with hexagonal local order at start"),
-        "hexagonal_end": ("1", "fraction of disks with hexagonal local order at the end"),
+        "hexagonal_start": ("1", "fraction of bulk disks with hexagonal local order at start"),
+        "hexagonal_end": ("1", "fraction of bulk disks with hexagonal local order at the end"),
+        "dislocations_start": ("1", "bulk disks with other than 6 Delaunay neighbours at start"),
+        "dislocations_end": ("1", "bulk disks with other than 6 Delaunay neighbours at the end"),
+        "intact_start": ("1", "bulk |psi6| >= crystal_min_psi6 and no dislocation at start"),
+        "intact_end": ("1", "bulk |psi6| >= crystal_min_psi6 and no dislocation at the end"),
         "launch_ratio": ("1", "largest bed centre-of-mass upward speed in transient / (A omega)"),
         "launch_ratio_disk": ("1", "largest disk upward speed in the transient / (A omega)"),
         "plate_contact_fraction": ("1", "fraction of samples with a disk on the plate"),
@@ -207,6 +219,12 @@ def point_dataset(
             "n_trials": _var((), n_trials, *units["n_trials"]),
             "psi6_start": _var((), mean("psi6_start"), *units["psi6_start"]),
             "psi6_end": _var((), mean("psi6_end"), *units["psi6_end"]),
+            "hexagonal_start": _var((), mean("hexagonal_start"), *units["hexagonal_start"]),
+            "hexagonal_end": _var((), mean("hexagonal_end"), *units["hexagonal_end"]),
+            "dislocations_start": _var(
+                (), mean("dislocations_start"), *units["dislocations_start"]
+            ),
+            "dislocations_end": _var((), mean("dislocations_end"), *units["dislocations_end"]),
             "launch_ratio": _var((), mean("launch_ratio"), *units["launch_ratio"]),
             "convection": _var(
                 (), int(s_c > float(detection["convection_s_c"])), "1", "convection flag s_c > σ"
@@ -222,9 +240,10 @@ def point_dataset(
             ),  # fmt: skip
             "crystal_intact": _var(
                 (),
-                int(mean("psi6_start") > float(order["crystal_min_psi6"])),
+                int(all(per_rep["intact_start"])),
                 "1",
-                "bulk |psi6| at measurement start above crystal_min_psi6",
+                "every replica's bulk at measurement start is a defect-free crystal: mean "
+                "|psi6| >= crystal_min_psi6 and no disk with other than 6 Delaunay neighbours",
             ),  # fmt: skip
             "s_k": _var(("phase",), np.mean(s_k_all, axis=0), "sigma", "s(k) of Eq. (B3)"),
             "s_j": _var(
@@ -277,6 +296,7 @@ def point_dataset(
             "Gamma": float(a["Gamma"]),
             "K_m": float(a["Gamma"]) ** 2,
             "init": a["init"],
+            "mu_w": float(a["mu_w"]),
             "replicas": R,
             "measured_periods": n_periods // max(R, 1),
             "wall_seconds": float(np.sum(per_rep["wall_seconds"])),

@@ -20,7 +20,6 @@ bookkeeping the init file stores (settling time, whether it settled, bulk ψ6).
 
 from __future__ import annotations
 
-import math
 import time as _time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -186,19 +185,7 @@ def prepare(
 
 def bulk_psi6(positions: np.ndarray, lx: float, r_max: float = 1.2, depth: float = 2.0) -> float:
     """Mean |ψ6| of disks more than ``depth`` σ from the side walls, the plate and the free
-    surface (the crystal check of docs/box.md, hazard (ii)); NaN if none qualifies."""
+    surface (:func:`granpipe.analysis.box.crystal_check`); NaN if none qualifies."""
     from ..analysis import box as ab
 
-    pos = np.asarray(positions, dtype=np.float64)
-    psi6, _ = ab.bond_order(pos, 6, r_max=r_max)
-    top = ab.free_surface_height(pos)
-    zmin = pos[:, 1].min()
-    inside = (
-        (pos[:, 0] > depth)
-        & (pos[:, 0] < lx - depth)
-        & (pos[:, 1] > zmin + depth)
-        & (pos[:, 1] < top - depth)
-    )
-    vals = np.abs(psi6[inside])
-    vals = vals[np.isfinite(vals)]
-    return float(vals.mean()) if vals.size else math.nan
+    return ab.crystal_check(positions, lx, r_max=r_max, depth=depth).psi6

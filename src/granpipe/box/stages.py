@@ -7,7 +7,9 @@
     figures   Figures 1, 3, 4, 5                              -> figures/fig<k>_<name>.{png,pdf}
 
 Seeds: a replica's stream is ``replica_rng("box", seed_physics, replica)`` with
-``seed_physics = {physics, init, N_l, init kind}`` (:func:`seed_physics`); the run itself
+``seed_physics = {physics without mu_side_walls, init, N_l, init kind}``
+(:func:`seed_physics`): the side-wall friction values of one replica share their random
+numbers (lattice noise, placement), so that they compare like with like. The run itself
 is deterministic given its initial state. Blow-ups are re-raised with the study, point,
 replica and seed.
 """
@@ -24,7 +26,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import SimulationError
-from ..io import read_dataset, write_dataset
+from ..io import RunFileError, config_hash, expect_attrs, read_dataset, write_dataset
 from ..seeds import replica_rng, replica_seed
 from . import layout, model, prepare, protocol
 from .layout import ensemble_params, figures_params, fits_params, runs_params
@@ -47,9 +49,10 @@ def log_to_stderr(text: str) -> None:
 
 
 def seed_physics(params: Mapping, n_l: int, kind: str) -> dict:
-    """The mapping that defines a replica's random stream (physics and preparation)."""
+    """The mapping that defines a replica's random stream (physics but the side walls'
+    friction, and preparation)."""
     return {
-        "physics": dict(params["physics"]),
+        "physics": {k: v for k, v in params["physics"].items() if k != "mu_side_walls"},
         "init": dict(params["init"]),
         "N_l": int(n_l),
         "init_kind": kind,
@@ -80,15 +83,15 @@ def init_stage(
     sp = seed_physics(params, n_l, kind)
     seed = replica_seed("box", sp, replica)
     rng = replica_rng("box", sp, replica)
-    label = f"init {layout.state_name(n_l, kind)} replica {replica}"
+    mu_w = float(physics["mu_side_walls"])
+    state = layout.state_name(n_l, kind, mu_w)
+    label = f"init {state} replica {replica}"
     if log:
         log(f"{label}: N = {n}, seed = {seed}")
     try:
         prep = prepare.prepare(physics, init_cfg, n, kind, rng, log=log)
     except SimulationError as exc:
-        raise exc.with_context(
-            study="box", point=layout.state_name(n_l, kind), replica=replica, seed=seed
-        ) from exc
+        raise exc.with_context(study="box", point=state, replica=replica, seed=seed) from exc
     from ..analysis import box as ab
 
     lo = ab.local_order(prep.positions)
@@ -120,10 +123,11 @@ def init_stage(
         attrs={
             "study": "box",
             "stage": "init",
-            "state": layout.state_name(n_l, kind),
+            "state": state,
             "N_l": int(n_l),
             "N": n,
             "init": kind,
+            "mu_w": mu_w,
             "replica": int(replica),
             "seed": str(seed),
             "settled": int(prep.settled),
@@ -171,8 +175,15 @@ def runs_stage(
     physics, proto = params["physics"], params["protocol"]
     p0, p1 = (int(v) for v in params["part_periods"])
     periods = range(p0, p1)
-    point = layout.point_name(n_l, gamma, kind)
+    mu_w = float(physics["mu_side_walls"])
+    point = layout.point_name(n_l, gamma, kind, mu_w)
     init_ds = read_dataset(init_file)
+    # the prepared state of this point's (N_l, init, mu_w, replica), from this physics
+    expect_attrs(
+        init_ds, init_file, study="box", stage="init",
+        state=layout.state_name(n_l, kind, mu_w), replica=int(replica),
+        config_hash=config_hash({"physics": physics, "init": params["init"]}),
+    )  # fmt: skip
     seed = int(init_ds.attrs["seed"])
     label = f"runs {point} replica {replica} part {part}"
     kwargs = {}
@@ -186,6 +197,10 @@ def runs_stage(
         if previous is None:
             raise ValueError(f"part {part} needs --previous (the run file of part {part - 1})")
         prev = read_dataset(previous)
+        expect_attrs(
+            prev, previous, study="box", stage="runs", point=point, replica=int(replica),
+            part=part - 1, seed=seed,
+        )  # fmt: skip
         kwargs.update(previous_state=_engine_arrays(prev), tracers=prev["tracer_index"].values)
     n = int(init_ds.sizes["particle"])
     if log:
@@ -266,6 +281,7 @@ def runs_stage(
             "Gamma": float(gamma),
             "K_m": float(gamma) ** 2,
             "init": kind,
+            "mu_w": mu_w,
             "replica": int(replica),
             "part": int(part),
             "seed": str(seed),
@@ -285,18 +301,32 @@ def runs_stage(
 
 
 def read_point_runs(files: Sequence[str | Path]) -> dict[int, list[xr.Dataset]]:
-    """Run files of one point grouped by replica, each list in part order."""
+    """Run files of one point grouped by replica, each list in part order.
+
+    Raises RunFileError (naming the file) unless every file is a box run file of the same
+    point as the first, each (replica, part) appears once and every replica has the same
+    parts 0, 1, ..., P - 1.
+    """
     by_rep: dict[int, list[xr.Dataset]] = {}
+    where: dict[tuple[int, int], str] = {}
+    point = None
     for f in files:
         ds = read_dataset(f)
+        expect_attrs(ds, f, study="box", stage="runs")
+        point = point or ds.attrs.get("point")
+        expect_attrs(ds, f, point=point)
+        key = (int(ds.attrs["replica"]), int(ds.attrs["part"]))
+        if key in where:
+            raise RunFileError(f"replica {key[0]} part {key[1]} appears twice: {where[key]}, {f}")
+        where[key] = str(f)
         ds = ds.drop_vars([v for v in ds.data_vars if v.startswith("engine_")])
-        by_rep.setdefault(int(ds.attrs["replica"]), []).append(ds)
+        by_rep.setdefault(key[0], []).append(ds)
+    n_parts = max((len(p) for p in by_rep.values()), default=0)
     for rep, parts in by_rep.items():
         parts.sort(key=lambda d: int(d.attrs["part"]))
-        expected = list(range(len(parts)))
         got = [int(d.attrs["part"]) for d in parts]
-        if got != expected:
-            raise ValueError(f"replica {rep}: parts {got}, expected {expected}")
+        if got != list(range(n_parts)):
+            raise RunFileError(f"{point} replica {rep}: parts {got}, expected 0..{n_parts - 1}")
     return by_rep
 
 
@@ -333,6 +363,15 @@ def fit_n_l(fits_cfg: Mapping, n_ls) -> int:
     n_ls = sorted({int(n) for n in n_ls})
     want = fits_cfg.get("N_l")
     return int(want) if want is not None and int(want) in n_ls else n_ls[-1]
+
+
+def figure_mu_w(values) -> float:
+    """The side-wall friction Figures 1 and 3–5 draw: Table I's 0.6 if the grid has it,
+    else the smallest."""
+    from .fitting import PAPER_MU_W
+
+    vals = sorted({float(v) for v in values})
+    return PAPER_MU_W if any(math.isclose(v, PAPER_MU_W) for v in vals) else vals[0]
 
 
 def fits_stage(
@@ -387,7 +426,8 @@ def load_fits(fits_dir: str | Path):
 
     def rows(name):
         ds = read_dataset(fits_dir / f"{name}.nc")
-        df = pd.DataFrame({c: ds[c].values for c in ("value", "se", "ci_low", "ci_high", "N_l")})
+        cols = ("value", "se", "ci_low", "ci_high", "N_l", "mu_w")
+        df = pd.DataFrame({c: ds[c].values for c in cols})
         for c in ("init", "name"):
             df[c] = ds[c].values.astype(str)
         df["index"] = ds["index"].values.astype(int)
@@ -406,11 +446,18 @@ def figures_stage(
     out_dir: str | Path,
     log: Callable[[str], None] | None = log_to_stderr,
 ) -> list[Path]:
-    """Figures 1, 3, 4, 5 (PNG and PDF)."""
+    """Figures 1, 3, 4, 5 at one side-wall friction (:func:`figure_mu_w`) and Fig. 6, the
+    thresholds against it (PNG and PDF)."""
     from ..figures import box as figs
+    from .fitting import PAPER
 
     out_dir = Path(out_dir)
     points, ths, temp, slips = load_fits(fits_dir)
+    all_ths = ths
+    mu_w = figure_mu_w(points["mu_w"])
+    points, ths, temp, slips = (
+        df[np.isclose(df["mu_w"].to_numpy(float), mu_w)] for df in (points, ths, temp, slips)
+    )
     n_fit = fit_n_l(params["fits"], points["N_l"])
     written = []
     # Fig. 1: initial states of the largest N_l (replica 0), then the same starts at the
@@ -419,15 +466,16 @@ def figures_stage(
     inits = {}
     for f in init_files:
         ds = read_dataset(f)
-        if int(ds.attrs["N_l"]) == n_big and int(ds.attrs["replica"]) == 0:
-            inits[ds.attrs["init"]] = ds
+        a = ds.attrs
+        if int(a["N_l"]) == n_big and int(a["replica"]) == 0 and float(a["mu_w"]) == mu_w:
+            inits[a["init"]] = ds
     panels = []
     for kind in ("crystal", "random"):
         if kind in inits:
             ds = inits[kind]
             panels.append(
                 {
-                    "title": f"{kind} start, N_l = {n_big}\nbulk |ψ6| = "
+                    "title": f"{kind} start, N_l = {n_big}, μ_w = {mu_w:g}\nbulk |ψ6| = "
                     f"{float(ds.attrs['bulk_psi6']):.3f}",
                     "positions": ds["positions"].values,
                     "order": ds["order"].values,
@@ -447,7 +495,7 @@ def figures_stage(
         panels.append(
             {
                 "title": f"{kind}, Γ = {row['Gamma']:g}: measurement start\nbulk |ψ6| = "
-                f"{float(ds['psi6_start']):.3f}",
+                f"{float(ds['psi6_start']):.3f}, {int(ds['dislocations_start'])} defects",
                 "positions": ds["positions_start"].values,
                 "order": ds["order_start"].values,
                 "z_plate": float(np.min(ds["positions_start"].values[:, 1])) - 0.5,
@@ -463,6 +511,11 @@ def figures_stage(
     written += figs.save(
         figs.fig5_slip_probability(points, slips, temp, n_fit), out_dir, layout.FIGURES[5]
     )
+    paper_lines = {
+        "paper: bouncing just above Γ = 1": PAPER["Gamma_bouncing"],
+        "paper: random-start convection, K_m ≈ 3.3": math.sqrt(PAPER["K_m_break_random"]),
+    }
+    written += figs.save(figs.fig6_wall_friction(all_ths, paper_lines), out_dir, layout.FIGURES[6])
     if log:
         log("figures: " + ", ".join(str(p) for p in written))
     return written

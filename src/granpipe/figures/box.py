@@ -7,6 +7,12 @@
   segmented fits and their breakpoints (dashed) with intervals (shaded).
 * :func:`fig5_slip_probability` — p_s against 1/K_m (log), Arrhenius fits per region,
   points without slips as upper bounds.
+* :func:`fig6_wall_friction` — (ours) the thresholds in Γ against the side walls' Coulomb
+  coefficient μ_w, one panel per N_l, the paper's thresholds as lines.
+
+Figures 3–5 draw one side-wall friction (the stage picks Table I's 0.6 when the grid has
+it); crystal points whose crystal broke before measurement are drawn as crosses and are
+not part of any fit.
 
 Inputs are pandas tables built from the fits files (:func:`granpipe.box.stages.load_fits`)
 and snapshots (positions + order codes). :func:`save` writes PNG and PDF atomically.
@@ -34,6 +40,7 @@ __all__ = [
     "fig3_phase_diagram",
     "fig4_granular_temperature",
     "fig5_slip_probability",
+    "fig6_wall_friction",
     "segmented_curve",
     "save",
 ]
@@ -167,6 +174,22 @@ def segmented_curve(x_log: np.ndarray, intercept: float, slopes, breakpoints_log
     return y
 
 
+def _split_broken(g: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(points used by the fits, crystal points left out because their crystal broke)."""
+    from ..box.fitting import used_mask
+
+    used = used_mask(g)
+    return g[used], g[~used]
+
+
+def _broken_note(ax, points: pd.DataFrame) -> None:
+    from ..box.fitting import used_mask
+
+    if not used_mask(points).all():
+        ax.text(0.98, 0.97, "×: crystal broken before measurement (not fitted)",
+                transform=ax.transAxes, ha="right", va="top", fontsize=7)  # fmt: skip
+
+
 def _panels(inits):
     fig, axes = plt.subplots(1, len(inits), figsize=(4.2 * len(inits), 3.8),
                              layout="constrained", squeeze=False)  # fmt: skip
@@ -189,10 +212,11 @@ def fig4_granular_temperature(points: pd.DataFrame, temperature: pd.DataFrame, f
     colors = _nl_colors(points["N_l"])
     for init, ax in axes.items():
         for n_l, g in points[points["init"] == init].groupby("N_l"):
-            g = g.sort_values("K_m")
+            g, broken = _split_broken(g.sort_values("K_m"))
             ok = g["T_g"] > 0
             ax.errorbar(g["K_m"][ok], g["T_g"][ok], yerr=g["T_g_sem"][ok].fillna(0), fmt="o",
                         ms=4, color=colors[int(n_l)], label=f"$N_l$ = {int(n_l)}")  # fmt: skip
+            ax.plot(broken["K_m"], broken["T_g"], "x", ms=5, color=colors[int(n_l)])
             t = temperature[(temperature["init"] == init) & (temperature["N_l"] == n_l)]
             if t.empty or not ok.any():
                 continue
@@ -217,7 +241,9 @@ def fig4_granular_temperature(points: pd.DataFrame, temperature: pd.DataFrame, f
         ax.set_xlabel(r"$K_m$")
         ax.set_ylabel(r"$T_g^* = T_g/(mg\sigma)$")
         ax.set_title(f"({'ab'[inits.index(init)]}) {init} start", fontsize=9)
-        ax.legend(fontsize=7)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7)
+        _broken_note(ax, points[points["init"] == init])
     return fig
 
 
@@ -237,7 +263,9 @@ def fig5_slip_probability(
     colors = _nl_colors(points["N_l"])
     for init, ax in axes.items():
         for n_l, g in points[points["init"] == init].groupby("N_l"):
-            g = g[g["n_trials"] > 0].sort_values("K_m")
+            g, broken = _split_broken(g[g["n_trials"] > 0].sort_values("K_m"))
+            ax.plot(1.0 / broken["K_m"], broken["p_s"].where(broken["p_s"] > 0), "x", ms=5,
+                    color=colors[int(n_l)])  # fmt: skip
             if g.empty:
                 continue
             x = 1.0 / g["K_m"].to_numpy()
@@ -284,7 +312,62 @@ def fig5_slip_probability(
         ax.set_xlabel(r"$1/K_m$")
         ax.set_ylabel(r"slip probability $p_s$")
         ax.set_title(f"({'ab'[inits.index(init)]}) {init} start", fontsize=9)
-        ax.legend(fontsize=7)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7)
+        _broken_note(ax, points[points["init"] == init])
+    return fig
+
+
+def fig6_wall_friction(thresholds: pd.DataFrame, paper: dict | None = None):
+    """Thresholds in Γ against the side walls' Coulomb coefficient μ_w (ours).
+
+    Parameters
+    ----------
+    thresholds : DataFrame
+        Columns init, N_l, mu_w, criterion, Gamma, Gamma_low, Gamma_high, status (rows of
+        :func:`granpipe.box.fitting.thresholds_table`).
+    paper : dict, optional
+        Lines to draw: label -> Γ (e.g. the paper's bouncing and random-start convection).
+
+    A threshold below (above) the grid is drawn at the grid's first (last) Γ with an
+    arrow; error bars are the bracketing grid points.
+    """
+    n_ls = sorted({int(n) for n in thresholds["N_l"]})
+    fig, axes = plt.subplots(1, len(n_ls), figsize=(4.2 * len(n_ls) + 1.6, 3.8),
+                             layout="constrained", squeeze=False, sharey=True)  # fmt: skip
+    shift = {("random", "bouncing"): -0.012, ("crystal", "bouncing"): -0.006,
+             ("random", "detachment"): 0.0, ("crystal", "detachment"): 0.006,
+             ("random", "convection"): 0.012, ("crystal", "convection"): 0.018}  # fmt: skip
+    for ax, n_l in zip(axes[0], n_ls, strict=True):
+        sel = thresholds[thresholds["N_l"] == n_l]
+        for (init, crit), g in sel.groupby(["init", "criterion"]):
+            g = g.sort_values("mu_w")
+            x = g["mu_w"].to_numpy(float) + shift.get((init, crit), 0.0)
+            y = g["Gamma"].to_numpy(float)
+            lo, hi = g["Gamma_low"].to_numpy(float), g["Gamma_high"].to_numpy(float)
+            color = CRITERION_COLORS.get(crit, "k")
+            fill = "full" if init == "random" else "none"
+            mk = INIT_MARKERS.get(init, "o")
+            ok = np.isfinite(y)
+            ax.errorbar(x[ok], y[ok], yerr=[y[ok] - lo[ok], hi[ok] - y[ok]], fmt=mk + "-",
+                        color=color, fillstyle=fill, ms=6, capsize=3, lw=1,
+                        label=f"{crit}, {init}")  # fmt: skip
+            for xi, l_, h_, st in zip(x, lo, hi, g["status"], strict=True):
+                edge, step = (l_, 0.15) if st == "above_grid" else (h_, -0.15)
+                if st in ("above_grid", "below_grid") and np.isfinite(edge):
+                    ax.plot([xi], [edge], mk, color=color, fillstyle=fill, ms=6)
+                    ax.annotate("", (xi, edge + step), (xi, edge),
+                                arrowprops={"arrowstyle": "->", "color": color})  # fmt: skip
+        for label, value in (paper or {}).items():
+            ax.axhline(value, color="0.5", lw=0.8, ls=":")
+            ax.text(1.0, value, label, transform=ax.get_yaxis_transform(), ha="right",
+                    va="bottom", fontsize=6, color="0.35")  # fmt: skip
+        ax.set_xlabel(r"side-wall friction $\mu_w$")
+        ax.set_title(f"$N_l$ = {n_l}", fontsize=9)
+    axes[0][0].set_ylabel(r"threshold $\Gamma$")
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=7, loc="outside right upper",
+               title="thresholds (arrows:\nbeyond the grid)", title_fontsize=7)  # fmt: skip
     return fig
 
 
