@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/box.py            # cost per particle-step, N = 200, 400
     .venv/bin/python benchmarks/box.py --hazards  # launch speeds and ψ6 at measurement start
     .venv/bin/python benchmarks/box.py --crystal [--gamma 1.2 2.4] [--n-l 20] [--jobs 2]
+    .venv/bin/python benchmarks/box.py --convergence [--gamma 0.8 1.6 2.4 3.4] [--periods 100]
 
 Cost: ns per particle-step of the box law with walls and a driven plate (Γ = 2, after
 one period of drive), and the projected wall time of one default-scale point.
@@ -18,6 +19,10 @@ start phase, ramp and transient length in periods, side-wall friction μ_w) and 
 crystal check of docs/box.md (bulk |ψ6|, hexagonal fraction, dislocations = bulk disks
 with other than six Delaunay neighbours) at the start of the measurement and after
 ``--periods`` more periods.
+
+Convergence: s_c, s_b, T_g* and p_s of a point from its first P measured periods
+(:func:`granpipe.box.measures.convergence`), both starts, the default protocol, μ_w = 0.6,
+with the relative distance of each from its value at the longest record.
 """
 
 from __future__ import annotations
@@ -152,17 +157,67 @@ def crystal(gammas=(1.2, 2.4), n_l=20, periods=4, jobs=1, only=None):
                   f"{wall:5.0f}", flush=True)  # fmt: skip
 
 
+def _convergence_case(args):
+    import xarray as xr
+
+    from granpipe.box import measures
+
+    kind, gamma, n_l, periods = args
+    prep = prepare.prepare(PHYSICS, {**INIT, "crystal_relax_time": 2.0}, 20 * n_l, kind,
+                           np.random.default_rng(3))  # fmt: skip
+    proto = dict(start_phase="sine", ramp_periods=2.0, transient_periods=6, phases_per_period=64)
+    res = protocol.run_part(
+        PHYSICS, proto, gamma, 0, range(periods), start_positions=prep.positions,
+        start_velocities=prep.velocities, start_spins=prep.spins,
+    )  # fmt: skip
+    part = xr.Dataset(
+        {
+            "z_tracers": (("period", "phase", "tracer"), res.z_tracers),
+            **{k: (("period", "phase"), getattr(res, a)) for k, a in (
+                ("z_plate", "z_plate"), ("bed_gap", "bed_gap"), ("T_g", "granular_temperature"),
+                ("z_cm", "z_cm"), ("vz_cm", "vz_cm"), ("plate_contacts", "plate_contacts"))},
+            "positions": (("frame", "particle", "xy"), res.cycle_positions),
+        },
+        attrs={"wall_seconds": res.wall_seconds, "steps": res.steps},
+    )  # fmt: skip
+    slips = dict(displacement=0.2, min_neighbours=2, neighbour_cutoff=1.2, surface_depth=10.0)
+    marks = [p for p in (5, 10, 20, 50, 100, 200, 500) if p < periods] + [periods]
+    return kind, gamma, measures.convergence(measures.concat_parts([part]), slips, marks)
+
+
+def convergence(gammas=(0.8, 1.6, 2.4, 3.4), n_l=20, periods=100, jobs=1):
+    from concurrent.futures import ProcessPoolExecutor
+
+    todo = [(k, g, n_l, periods) for g in gammas for k in ("random", "crystal")]
+    print(f"N_l = {n_l}: measures from the first P periods; (x) = |x(P)/x({periods}) - 1|")
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        for kind, gamma, c in pool.map(_convergence_case, todo):
+            print(f"{kind} Γ = {gamma}")
+            for i, p in enumerate(c["P"]):
+                cols = "  ".join(
+                    f"{q} {c[q][i]:.4g} ({abs(c[q][i] / c[q][-1] - 1):.2f})"
+                    if c[q][-1]
+                    else f"{q} {c[q][i]:.4g}"
+                    for q in ("s_c", "s_b", "T_g", "p_s")
+                )
+                print(f"  P = {p:4d}: {cols}", flush=True)
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--hazards", action="store_true")
     ap.add_argument("--crystal", action="store_true")
+    ap.add_argument("--convergence", action="store_true")
     ap.add_argument("--gamma", type=float, nargs="*", default=None)
     ap.add_argument("--n-l", type=int, default=None)
     ap.add_argument("--periods", type=int, default=4)
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--cases", type=int, nargs="*", default=None, help="indices of the cases")
     args = ap.parse_args()
-    if args.crystal:
+    if args.convergence:
+        convergence(gammas=args.gamma or (0.8, 1.6, 2.4, 3.4), n_l=args.n_l or 20,
+                    periods=args.periods, jobs=args.jobs)  # fmt: skip
+    elif args.crystal:
         crystal(gammas=args.gamma or (1.2, 2.4), n_l=args.n_l or 20, periods=args.periods,
                 jobs=args.jobs, only=args.cases)  # fmt: skip
     elif args.hazards:

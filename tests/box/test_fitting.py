@@ -1,9 +1,9 @@
 """The box fits on synthetic point tables with known thresholds, breakpoints and barriers.
 
 The analysis helpers check the generic regressions; here the glue: grouping by
-(init, N_l, mu_w), crystal points whose crystal broke left out, criteria and scales, regions from the T_g* breakpoints handed to the
-Arrhenius fits, summary rows next to the paper's numbers, and intervals that cover the
-truth on noisy data.
+(init, N_l, mu_w), crystal points whose crystal broke left out, criteria and scales,
+regions from the T_g* breakpoints handed to the Arrhenius fits, summary rows next to the
+paper's numbers, and intervals that cover the truth on noisy data.
 """
 
 import math

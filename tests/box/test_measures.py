@@ -43,7 +43,8 @@ def _part(part, frames, z_tr, z_plate, gap, tg):
         },
         attrs={
             "point": "N_l=20,Gamma=2.0,init=crystal,mu_w=0.6", "N_l": 20,
-            "N": frames.shape[1], "Gamma": 2.0, "init": "crystal", "mu_w": 0.6, "replica": 0, "part": part, "seed": "1",
+            "N": frames.shape[1], "Gamma": 2.0, "init": "crystal", "mu_w": 0.6, "replica": 0,
+            "part": part, "seed": "1",
             "amplitude": 2.0, "omega": 1.0, "wall_seconds": 1.0, "steps": 1000,
         },
     )  # fmt: skip
@@ -131,3 +132,17 @@ def test_crystal_order_at_measurement_start(synthetic):
     # the slip of period 1 leaves rows 7 and 8 on top of each other: square contacts
     # along the slip plane, no longer the defect-free crystal
     assert int(ds.intact_end_replica[0]) == 0 and int(ds.dislocations_end) > 0
+
+
+def test_convergence_of_the_full_record_is_the_point_value(synthetic):
+    run, ds = synthetic["run"], synthetic["ds"]
+    conv = measures.convergence(run, SLIPS, [1, 2])
+    # all periods: the point's own estimates; one period: that period's
+    assert conv["s_c"][1] == pytest.approx(float(ds.s_c), rel=1e-12)
+    assert conv["s_b"][1] == pytest.approx(float(ds.s_b), rel=1e-12)
+    assert conv["T_g"][1] == pytest.approx(float(ds.T_g), rel=1e-12)
+    assert conv["p_s"][1] == pytest.approx(float(ds.p_s), rel=1e-12)
+    assert conv["s_c"][0] == pytest.approx(synthetic["a"][0], rel=1e-6)  # s_0 = a_0
+    assert conv["T_g"][0] == pytest.approx(1.0) and conv["p_s"][0] == 0.0
+    with pytest.raises(ValueError, match="periods"):
+        measures.convergence(run, SLIPS, [3])
