@@ -186,8 +186,8 @@ def _broken_note(ax, points: pd.DataFrame) -> None:
     from ..box.fitting import used_mask
 
     if not used_mask(points).all():
-        ax.text(0.98, 0.97, "×: crystal broken before measurement (not fitted)",
-                transform=ax.transAxes, ha="right", va="top", fontsize=7)  # fmt: skip
+        ax.text(0.98, 0.02, "×: crystal broken before measurement\n(not fitted)",
+                transform=ax.transAxes, ha="right", va="bottom", fontsize=7)  # fmt: skip
 
 
 def _panels(inits):
