@@ -87,7 +87,7 @@ def fits_cmd(params, out_dir, ensemble_files):
 )
 @click.argument("ensemble_files", nargs=-1, required=True, type=click.Path(exists=True))
 def figures_cmd(params, fits_dir, out_dir, init_files, ensemble_files):
-    """Figures 1, 3, 4, 5 as PNG and PDF (params: Lx, order, fits)."""
+    """Figures 1, 3, 4, 5 and 6 (thresholds against μ_w), PNG and PDF (params: Lx, order, fits)."""
     from .stages import figures_stage
 
     figures_stage(params, fits_dir, init_files, ensemble_files, out_dir)

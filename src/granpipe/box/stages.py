@@ -1,10 +1,10 @@
 """The box study's stages as file-to-file functions (the CLI calls these; rules call the CLI).
 
-    init      prepared state of (N_l, init, replica)        -> init/<state>/replica_r.nc
+    init      prepared state of (N_l, init, mu_w, replica)  -> init/<state>/replica_r.nc
     runs      one part of one point and replica              -> runs/<point>/replica_r.part_p.nc
     ensemble  all runs of a point -> detection, T_g, p_s, ψ  -> ensemble/<point>.nc
     fits      all points -> thresholds, segmented T_g*, E_b  -> fits/*.nc, fits/summary.csv
-    figures   Figures 1, 3, 4, 5                              -> figures/fig<k>_<name>.{png,pdf}
+    figures   Figures 1, 3, 4, 5 and 6 (μ_w)                  -> figures/fig<k>_<name>.{png,pdf}
 
 Seeds: a replica's stream is ``replica_rng("box", seed_physics, replica)`` with
 ``seed_physics = {physics without mu_side_walls, init, N_l, init kind}``
