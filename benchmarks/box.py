@@ -158,8 +158,6 @@ def crystal(gammas=(1.2, 2.4), n_l=20, periods=4, jobs=1, only=None):
 
 
 def _convergence_case(args):
-    import xarray as xr
-
     from granpipe.box import measures
 
     kind, gamma, n_l, periods = args
@@ -170,19 +168,12 @@ def _convergence_case(args):
         PHYSICS, proto, gamma, 0, range(periods), start_positions=prep.positions,
         start_velocities=prep.velocities, start_spins=prep.spins,
     )  # fmt: skip
-    part = xr.Dataset(
-        {
-            "z_tracers": (("period", "phase", "tracer"), res.z_tracers),
-            **{k: (("period", "phase"), getattr(res, a)) for k, a in (
-                ("z_plate", "z_plate"), ("bed_gap", "bed_gap"), ("T_g", "granular_temperature"),
-                ("z_cm", "z_cm"), ("vz_cm", "vz_cm"), ("plate_contacts", "plate_contacts"))},
-            "positions": (("frame", "particle", "xy"), res.cycle_positions),
-        },
-        attrs={"wall_seconds": res.wall_seconds, "steps": res.steps},
-    )  # fmt: skip
     slips = dict(displacement=0.2, min_neighbours=2, neighbour_cutoff=1.2, surface_depth=10.0)
     marks = [p for p in (5, 10, 20, 50, 100, 200, 500) if p < periods] + [periods]
-    return kind, gamma, measures.convergence(measures.concat_parts([part]), slips, marks)
+    conv = measures.convergence(
+        res.z_tracers, res.z_plate, res.granular_temperature, res.cycle_positions, slips, marks
+    )
+    return kind, gamma, conv
 
 
 def convergence(gammas=(0.8, 1.6, 2.4, 3.4), n_l=20, periods=100, jobs=1):

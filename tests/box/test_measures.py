@@ -136,7 +136,8 @@ def test_crystal_order_at_measurement_start(synthetic):
 
 def test_convergence_of_the_full_record_is_the_point_value(synthetic):
     run, ds = synthetic["run"], synthetic["ds"]
-    conv = measures.convergence(run, SLIPS, [1, 2])
+    record = (run.z_tracers, run.z_plate, run.T_g, run.frames)
+    conv = measures.convergence(*record, SLIPS, [1, 2])
     # all periods: the point's own estimates; one period: that period's
     assert conv["s_c"][1] == pytest.approx(float(ds.s_c), rel=1e-12)
     assert conv["s_b"][1] == pytest.approx(float(ds.s_b), rel=1e-12)
@@ -145,4 +146,4 @@ def test_convergence_of_the_full_record_is_the_point_value(synthetic):
     assert conv["s_c"][0] == pytest.approx(synthetic["a"][0], rel=1e-6)  # s_0 = a_0
     assert conv["T_g"][0] == pytest.approx(1.0) and conv["p_s"][0] == 0.0
     with pytest.raises(ValueError, match="periods"):
-        measures.convergence(run, SLIPS, [3])
+        measures.convergence(*record, SLIPS, [3])

@@ -555,6 +555,7 @@ def crystal_check(
     threshold: float = 0.7,
     min_psi6: float = 0.9,
     depth: float = 2.0,
+    local: dict | None = None,
 ) -> CrystalCheck:
     """Whether a bed's bulk (:func:`bulk_mask`) is still a defect-free hexagonal crystal.
 
@@ -569,10 +570,13 @@ def crystal_check(
         Least bulk mean |ψ6| of an intact crystal.
     depth : float [σ]
         Bulk window (:func:`bulk_mask`).
+    local : dict, optional
+        :func:`local_order` of ``positions`` with the same ``r_max`` and ``threshold``,
+        if the caller has it already (it is not computed twice).
     """
     pos = np.asarray(positions, dtype=np.float64)
     inside = bulk_mask(pos, lx, depth)
-    lo = local_order(pos, r_max=r_max, threshold=threshold)
+    lo = local if local is not None else local_order(pos, r_max=r_max, threshold=threshold)
     a6 = np.abs(lo["psi6"][inside])
     a6 = a6[np.isfinite(a6)]
     n_bulk = int(inside.sum())

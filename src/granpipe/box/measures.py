@@ -118,9 +118,9 @@ def point_dataset(
         checks = {
             when: ab.crystal_check(
                 frame, lx, r_max=r_max, threshold=float(order["threshold"]),
-                min_psi6=float(order["crystal_min_psi6"]),
+                min_psi6=float(order["crystal_min_psi6"]), local=lo,
             )
-            for when, frame in (("start", run.frames[0]), ("end", run.frames[-1]))
+            for when, frame, lo in (("start", run.frames[0], lo0), ("end", run.frames[-1], lo1))
         }  # fmt: skip
         tr = run.transient
         per_rep["s_c"].append(s_c)
@@ -309,24 +309,34 @@ def point_dataset(
     return ds
 
 
-def convergence(run: ReplicaRun, slips: Mapping, periods: Sequence[int]) -> dict[str, np.ndarray]:
+def convergence(
+    z_tracers: np.ndarray,
+    z_plate: np.ndarray,
+    T_g: np.ndarray,
+    frames: np.ndarray,
+    slips: Mapping,
+    periods: Sequence[int],
+) -> dict[str, np.ndarray]:
     """s_c, s_b, T_g* and p_s of one replica from its first P measured periods, for each P
     in ``periods`` (how many periods a point needs; docs/box.md, "Measured periods").
 
-    The same estimators as :func:`point_dataset` on the truncated record: s_c² the mean of
-    s_j² over the first P cycles (Eq. B2), s_b from s(k) of the first P cycles, T_g* the
-    mean of the per-period temperatures, p_s the mean of the per-period slip fractions.
+    Parameters are the record of a replica (:class:`ReplicaRun` attributes of the same
+    names): ``z_tracers`` (P, N_k, N_t), ``z_plate`` and ``T_g`` (P, N_k), ``frames``
+    (P + 1, N, 2). The same estimators as :func:`point_dataset` on the truncated record:
+    s_c² the mean of s_j² over the first P cycles (Eq. B2), s_b from s(k) of the first P
+    cycles, T_g* the mean of the per-period temperatures, p_s the mean of the per-period
+    slip fractions.
 
     Returns a dict of (len(periods),) arrays ``P``, ``s_c``, ``s_b``, ``T_g``, ``p_s``.
     """
     P = np.asarray([int(p) for p in periods])
-    n = run.z_tracers.shape[0]
+    n = z_tracers.shape[0]
     if P.min() < 1 or P.max() > n:
         raise ValueError(f"periods must lie in 1..{n}, got {P.min()}..{P.max()}")
-    _, s_j = ab.convection_measure(run.z_tracers[:, 0, :])
-    tg = run.T_g.mean(axis=1)
+    _, s_j = ab.convection_measure(z_tracers[:, 0, :])
+    tg = np.asarray(T_g).mean(axis=1)
     sl = ab.slip_probability(
-        run.frames[: P.max() + 1],
+        np.asarray(frames[: P.max() + 1], dtype=np.float64),
         threshold=float(slips["displacement"]),
         min_count=int(slips["min_neighbours"]),
         r_max=float(slips["neighbour_cutoff"]),
@@ -335,7 +345,7 @@ def convergence(run: ReplicaRun, slips: Mapping, periods: Sequence[int]) -> dict
     out = {"P": P, "s_c": [], "s_b": [], "T_g": [], "p_s": []}
     for p in P:
         out["s_c"].append(float(np.sqrt(np.mean(s_j[:p] ** 2))))
-        out["s_b"].append(ab.bouncing_measure(run.z_tracers[:p], run.z_plate[:p])[0])
+        out["s_b"].append(ab.bouncing_measure(z_tracers[:p], z_plate[:p])[0])
         out["T_g"].append(float(tg[:p].mean()))
         per = sl.per_period[:p]
         out["p_s"].append(float(np.nanmean(per)) if np.isfinite(per).any() else math.nan)

@@ -95,7 +95,7 @@ def init_stage(
     from ..analysis import box as ab
 
     lo = ab.local_order(prep.positions)
-    psi6 = prepare.bulk_psi6(prep.positions, float(physics["Lx"]))
+    psi6 = ab.crystal_check(prep.positions, float(physics["Lx"]), local=lo).psi6
     if log:
         log(
             f"{label}: settled={prep.settled} after {prep.settle_time:.2f} t0 "

@@ -105,6 +105,17 @@ def fig1_snapshots(panels: list[dict], lx: float = 20.0):
     return fig
 
 
+def _beyond_grid(ax, x, lo, hi, status, marker, color, fill, *, ms, step):
+    """Thresholds outside the grid: the marker at the grid end (``lo`` for above, ``hi``
+    for below) with an arrow of length ``step`` beyond it."""
+    for xi, l_, h_, st in zip(x, lo, hi, status, strict=True):
+        edge, d = (l_, step) if st == "above_grid" else (h_, -step)
+        if st in ("above_grid", "below_grid") and np.isfinite(edge):
+            ax.plot([xi], [edge], marker, color=color, fillstyle=fill, ms=ms, zorder=3)
+            ax.annotate("", (xi, edge + d), (xi, edge),
+                        arrowprops={"arrowstyle": "->", "color": color})  # fmt: skip
+
+
 def fig3_phase_diagram(points: pd.DataFrame, thresholds: pd.DataFrame):
     """Dynamical phase diagram (Fig. 3): thresholds in Γ against N_l, K_m on the right.
 
@@ -139,14 +150,8 @@ def fig3_phase_diagram(points: pd.DataFrame, thresholds: pd.DataFrame):
             color=color, fillstyle=fill, ms=7, capsize=3, lw=1, ls="-" if ok.sum() > 1 else "",
             label=f"{crit}, {init}", zorder=3,
         )  # fmt: skip
-        # outside the grid: the marker at the grid end with an arrow beyond it
-        for xi, l_, h_, st in zip(x, lo, hi, g["status"], strict=True):
-            edge, step = (l_, 0.2) if st == "above_grid" else (h_, -0.2)
-            if st in ("above_grid", "below_grid") and np.isfinite(edge):
-                ax.plot([xi], [edge], INIT_MARKERS.get(init, "o"), color=color, fillstyle=fill,
-                        ms=7, zorder=3)  # fmt: skip
-                ax.annotate("", (xi, edge + step), (xi, edge),
-                            arrowprops={"arrowstyle": "->", "color": color})  # fmt: skip
+        _beyond_grid(ax, x, lo, hi, g["status"], INIT_MARKERS.get(init, "o"), color, fill,
+                     ms=7, step=0.2)  # fmt: skip
     ax.axhline(1.0, color="0.7", lw=0.8, ls=":")
     n_ls = points["N_l"].to_numpy(float)
     ax.set_xlim(n_ls.min() - 5.0, n_ls.max() + 5.0)
@@ -352,12 +357,7 @@ def fig6_wall_friction(thresholds: pd.DataFrame, paper: dict | None = None):
             ax.errorbar(x[ok], y[ok], yerr=[y[ok] - lo[ok], hi[ok] - y[ok]], fmt=mk + "-",
                         color=color, fillstyle=fill, ms=6, capsize=3, lw=1,
                         label=f"{crit}, {init}")  # fmt: skip
-            for xi, l_, h_, st in zip(x, lo, hi, g["status"], strict=True):
-                edge, step = (l_, 0.15) if st == "above_grid" else (h_, -0.15)
-                if st in ("above_grid", "below_grid") and np.isfinite(edge):
-                    ax.plot([xi], [edge], mk, color=color, fillstyle=fill, ms=6)
-                    ax.annotate("", (xi, edge + step), (xi, edge),
-                                arrowprops={"arrowstyle": "->", "color": color})  # fmt: skip
+            _beyond_grid(ax, x, lo, hi, g["status"], mk, color, fill, ms=6, step=0.15)
         for label, value in (paper or {}).items():
             ax.axhline(value, color="0.5", lw=0.8, ls=":")
             ax.text(1.0, value, label, transform=ax.get_yaxis_transform(), ha="right",
