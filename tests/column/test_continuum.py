@@ -1,10 +1,10 @@
-"""Continuum models: coefficients, manufactured solutions (observed order), rest states."""
+"""Continuum models: units, wave speed, observed order, rest states (docs/column.md)."""
 
 import numpy as np
 import pytest
 
 from granpipe.column import continuum as c
-from granpipe.column.params import parameter_set
+from granpipe.column.params import ColumnParams, parameter_set
 
 P = parameter_set("figure1_N10")
 S = 2 * P.N * P.r
@@ -18,44 +18,79 @@ def test_longwave_coefficients_of_eq38():
     assert co.gamma == pytest.approx(co.A_minus / (36 * co.C1))
 
 
-def _lw_mms(J, viscosity="as_printed"):
-    co = c.longwave_coefficients(P)
-    k, eps, w, th = np.pi / (2 * S), 0.2, 30.0, 0.3
-    Kh2m, h, r, al, e = P.K * P.h**2 / P.m, P.h, P.r, co.alpha, P.e
-
-    def exact(z, t):
-        s = np.sin(k * z)
-        return z + eps * s * np.sin(w * t + th), eps * s * w * np.cos(w * t + th)
-
-    def forcing(z, t):
-        s, cz = np.sin(k * z), np.cos(k * z)
-        T, T1, T2 = np.sin(w * t + th), w * np.cos(w * t + th), -w * w * np.sin(w * t + th)
-        yz, yzz = 1 + eps * k * cz * T, -eps * k * k * s * T
-        vz, vzz = eps * k * cz * T1, -eps * k * k * s * T1
-        visc = yzz if viscosity == "as_printed" else np.maximum(yzz, 0)
-        R = (co.A_plus / 3) * yzz - (h / 3) * (co.B * yz + e * al * co.A_plus * vz) * yzz
-        R += (
-            h
-            * h
-            * (
-                2 * r * al * yz**2 * yzz
-                + e * al * co.B * yz * yzz * vz
-                + e * al * co.A_plus / 6 * visc * vzz
-            )
-        )
-        return eps * s * T2 * (1 + co.gamma * h * h * k * k) - (-P.g + Kh2m * R)
-
-    out = c.solve_longwave(
-        P, 0.05, dz=S / J, exact=exact, forcing=forcing, record_dt=0.05, viscosity=viscosity
-    )
-    return np.max(np.abs(out["y"][-1] - exact(out["z"], out["t"][-1])[0]))
+def test_printed_eq35_wave_speed_depends_on_units():
+    """The printed C(1) = A₊/3 − hB/3 + 2rαh² carries a length²: cgs and SI disagree."""
+    si = ColumnParams(N=10, m=1e-3, r=0.01, g=9.8067, K=P.K * 1e-3, e=0.09, a=0.0106,
+                        omega=P.omega, T=1.0)  # fmt: skip
+    cgs, mks = c.longwave_coefficients(P), c.longwave_coefficients(si)
+    assert cgs.C1 == pytest.approx(5.1667, rel=1e-4)  # 2.5/3 + 1/3 + 4 cm²
+    assert mks.C1 == pytest.approx(1.1671, rel=1e-4)  # ... + 4e-4 m²
+    # the same column: h sqrt(K/m) is the same speed in both systems, C(1) is not
+    assert P.h * np.sqrt(P.K / P.m) / 100 == pytest.approx(si.h * np.sqrt(si.K / si.m))
 
 
-def test_longwave_second_order_on_manufactured_solution():
-    """y = z + ε sin(πz/2S) sin(ωt + θ), full nonlinear Eq. (35) with g and e."""
-    errs = np.array([_lw_mms(J) for J in (10, 20, 40)])
-    orders = np.log2(errs[:-1] / errs[1:])
-    # measured 2.014, 2.003 (and 2.001, 2.000 on to J = 160)
+def _same_column_in_si(p):
+    return ColumnParams(N=p.N, m=p.m * 1e-3, r=p.r * 1e-2, g=p.g * 1e-2, K=p.K * 1e-3,
+                          e=p.e, a=p.a * 1e-2, omega=p.omega, T=p.T)  # fmt: skip
+
+
+def test_same_column_in_cgs_and_si_gives_the_same_dimensionless_solution():
+    si = _same_column_in_si(P)
+    q_cgs, q_si = c.dimensionless(P), c.dimensionless(si)
+    for f in ("g", "a", "omega", "T"):
+        assert getattr(q_si, f) == pytest.approx(getattr(q_cgs, f), rel=1e-14), f
+    t_end = 0.3 * q_cgs.T  # through the first tap and past it
+    a = c.solve_longwave(q_cgs, t_end, dz=1 / 8, record_dt=t_end / 30)
+    b = c.solve_longwave(q_si, t_end, dz=1 / 8, record_dt=t_end / 30)
+    assert a["y"].shape == b["y"].shape
+    moved = np.max(np.abs(a["y"] - a["y"][0]))
+    assert moved > 0.1  # the tap moved the column by a tenth of a diameter or more
+    assert np.max(np.abs(a["y"] - b["y"])) < 1e-10 * moved
+    a = c.solve_bsr(q_cgs, 5.0, dz=1 / 4, record_dt=0.5)
+    b = c.solve_bsr(q_si, 5.0, dz=1 / 4, record_dt=0.5)
+    assert np.max(np.abs(a["tracers"] - b["tracers"])) < 1e-10
+
+
+def _phase_speed(N, k, dz=1 / 16, C0=0.1, eps=1e-4):
+    """Phase speed of a standing mode sin(kz) on a pre-compressed column, fixed ends."""
+    q = ColumnParams(N=N, m=1.0, r=0.5, g=0.0, K=1.0, e=0.0, a=0.0, omega=1.0, T=1e9)
+    z = np.linspace(0, N, int(round(N / dz)) + 1)
+    Y = z * (1 - C0) + eps * np.sin(k * z)
+    top = (np.array([0.0, 1e4]), np.full(2, N * (1 - C0)), np.zeros(2))
+    period = 2 * np.pi / k
+    out = c.solve_longwave(q, 2.2 * period, dz=dz, top=top, record_dt=period / 400,
+                           initial=(Y, np.zeros_like(Y)))  # fmt: skip
+    s = np.sin(k * z)
+    amp = (out["y"] - z * (1 - C0)) @ s / (s @ s)
+    i = np.where(np.sign(amp[1:]) != np.sign(amp[:-1]))[0]
+    t0 = out["t"][i] - amp[i] * (out["t"][i + 1] - out["t"][i]) / (amp[i + 1] - amp[i])
+    return np.pi / np.mean(np.diff(t0)) / k
+
+
+@pytest.mark.parametrize("N", [10, 20])
+def test_longwave_speed_is_the_chains_sound_speed_to_the_order_of_the_expansion(N):
+    """Chain: ω = 2 sin(k/2) (units h, sqrt(m/K)), speed 1 − k²/24 + O(k⁴)."""
+    k = np.pi / N
+    speed = _phase_speed(N, k)
+    chain = 2 * np.sin(k / 2) / k
+    # agreement to O(k⁴): far inside the k²/24 dispersive correction itself
+    assert abs(speed - chain) < 0.05 * k**2 / 24, (speed, chain)
+    assert abs(speed - 1.0) > 0.5 * k**2 / 24  # the dispersion is there
+
+
+def test_longwave_second_order_on_a_smooth_problem():
+    """A smooth velocity pulse in the resting column (no tap): successive differences."""
+    q = ColumnParams(N=10, m=1.0, r=0.5, g=0.025, K=1.0, e=0.09, a=0.0, omega=1.0, T=1e9)
+    zi = np.arange(1, 11) - 0.5
+    ys = []
+    for k in (4, 8, 16, 32):
+        z = np.linspace(0, 10, 10 * k + 1)
+        init = (c.longwave_equilibrium(q, z), 0.02 * np.exp(-(((z - 5) / 1.5) ** 2)))
+        out = c.solve_longwave(q, 30.0, dz=1 / k, record_dt=1.0, initial=init)
+        ys.append(np.array([np.interp(zi, out["z"], row) for row in out["y"]]))
+    e = np.array([np.max(np.abs(a - b)) for a, b in zip(ys[:-1], ys[1:], strict=True)])
+    orders = np.log2(e[:-1] / e[1:])
+    # measured 2.010, 2.003 (2.001 on to h/64)
     assert np.all(np.abs(orders - 2) < 0.1), orders
 
 
@@ -96,20 +131,21 @@ def test_bsr_second_order_on_manufactured_solution():
     assert np.all(np.abs(orders - 2) < 0.1), orders
 
 
-def test_longwave_stays_at_rest_without_taps():
-    p = P.with_(a=0.0)
-    out = c.solve_longwave(p, 0.5, dz=S / 40, record_dt=0.1)
-    assert np.max(np.abs(out["v"])) < 1e-9 * p.g
-    assert np.max(np.abs(out["y"] - out["y"][0])) < 1e-11 * S
-    assert np.allclose(out["rho"], P.m / (2 * P.r))
-    # and the rest state is compressed by gravity: y_z < 1 at the bottom, = 1 at the top
-    y0 = out["y"][0]
-    assert (y0[1] - y0[0]) < (y0[-1] - y0[-2]) < out["z"][1] * (1 + 1e-12)
+def test_longwave_rest_state_is_the_chains_and_stays_at_rest():
+    q = c.dimensionless(P).with_(a=0.0)
+    out = c.solve_longwave(q, 50.0, dz=1 / 8, record_dt=10.0)
+    assert np.max(np.abs(out["v"])) < 1e-12
+    assert np.max(np.abs(out["y"] - out["y"][0])) < 1e-12 * q.N
+    # compression C = 1 − y_z is the chain's G (N − z) at every half node (Eq. 26)
+    zh = out["z_cell"]
+    C = 1 - np.diff(out["y"][0]) / np.diff(out["z"])
+    assert C == pytest.approx(q.g * (q.N - zh), rel=1e-12)
+    assert out["rho"][0] == pytest.approx(1 / (1 - q.g * (q.N - zh)), rel=1e-12)
 
 
 def test_bsr_stays_at_rest_without_forces():
     p = P.with_(a=0.0, g=0.0)
-    out = c.solve_bsr(p, 0.3, dz=P.h / 4, kernel=False, record_dt=0.1)
+    out = c.solve_bsr(p, 0.3, dz=P.h / 4, kernel="none", record_dt=0.1)
     assert np.all(out["u"] == 0.0)
     assert np.array_equal(out["rho"][-1], out["rho"][0])
     assert np.allclose(out["tracers"], out["tracers"][0])

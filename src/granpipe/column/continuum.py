@@ -65,7 +65,6 @@ import dataclasses
 import math
 
 import numpy as np
-from scipy.linalg import solve_banded
 
 from .._jit import njit
 from .params import ColumnParams
@@ -137,14 +136,67 @@ class _TopBoundary:
         return float(np.interp(t, self.t, self.y))
 
 
+# --------------------------------------------------------------------------- chain units
+@dataclasses.dataclass(frozen=True)
+class ChainScales:
+    """The chain's own units (docs/column.md, "Chain units").
+
+    Attributes: ``length`` h = 2r, ``time`` sqrt(m/K), ``mass`` m; ``velocity`` is
+    h sqrt(K/m), the long-wave sound speed of the chain.
+    """
+
+    length: float
+    time: float
+    mass: float
+
+    @property
+    def velocity(self) -> float:
+        return self.length / self.time
+
+
+def chain_scales(p: ColumnParams) -> ChainScales:
+    """h, sqrt(m/K), m of a column given in any consistent unit system."""
+    return ChainScales(p.h, math.sqrt(p.m / p.K), p.m)
+
+
+def dimensionless(p: ColumnParams) -> ColumnParams:
+    """The same column in chain units: m = K = 1, h = 1 (r = 1/2).
+
+    g becomes G = m g/(K h) = 𝔐/h, a becomes a/h, ω becomes ω sqrt(m/K) and T becomes
+    T sqrt(K/m); e and N are already numbers. A column given in cgs and the same column
+    given in SI map to the same dimensionless column up to round-off.
+    """
+    s = chain_scales(p)
+    return ColumnParams(
+        N=p.N,
+        m=1.0,
+        r=0.5,
+        g=p.g * s.time**2 / s.length,
+        K=1.0,
+        e=p.e,
+        a=p.a / s.length,
+        omega=p.omega * s.time,
+        T=p.T / s.time,
+    )
+
+
+def _require_dimensionless(q: ColumnParams, who: str) -> None:
+    if not (q.m == 1.0 and q.K == 1.0 and q.r == 0.5):
+        raise ValueError(f"{who}: give the column in chain units (continuum.dimensionless(p))")
+
+
 # --------------------------------------------------------------------------- long wave
 @dataclasses.dataclass(frozen=True)
 class LongWaveCoefficients:
-    """Coefficients of Eq. (35) with σ_α, χ(0) (Eqs. 36–38).
+    """Coefficients of Eq. (35) as printed, with σ_α, χ(0) (Eqs. 36–38).
+
+    Kept to show what the printed equation implies: its linear wave coefficient
+    C(1) = A₊/3 − hB/3 + 2rαh² carries a term with an extra length², so its value and
+    the wave speed h sqrt(K C(1)/m) depend on the unit system (docs/column.md). The
+    derived model that is solved (:func:`solve_longwave`) does not use them.
 
     Attributes: ``A_plus``, ``A_minus``, ``B`` [1/length], ``alpha`` [1/length], ``chi0``,
-    ``C1`` (= C(1), linear wave coefficient about y_z = 1), ``gamma`` (regularization,
-    A₋/(36 C(1))), ``c`` [length/time] (linear wave speed h sqrt(K C(1)/m)).
+    ``C1``, ``gamma`` (A₋/(36 C(1))), ``c`` [length/time] (h sqrt(K C(1)/m)).
     """
 
     A_plus: float
@@ -173,73 +225,42 @@ def longwave_coefficients(p: ColumnParams, alpha: float | None = None, chi0: flo
     return LongWaveCoefficients(Ap, Am, B, alpha, chi0, C1, gamma, c)
 
 
-@njit
-def _lw_rhs(
-    y,
-    v,
-    dz,
-    Kh2m,
-    h,
-    r,
-    alpha,
-    e,
-    Ap,
-    B,
-    g,
-    gamma,
-    a_bottom,
-    top_dirichlet,
-    a_top,
-    dissipative,
-    out,
-):
-    """Acceleration y_tt of the regularized Eq. (35) at every node (node 0 = bottom).
+LW_GAMMA = 1.0 / 12.0
+"""Dispersive coefficient of the derived long-wave model, in units of h² (ω² = 4 sin²(k/2))."""
 
-    Solves (1 − γh² D2) a = R(y, v) with a_0 = ÿ0 (Dirichlet) and at the top either
-    a_J = ``a_top`` (the top point follows the discrete column: hybrid treatment) or the
-    stress-free surface y_z = 1 (ghost node) with a_{J+1} = a_{J−1}.
+
+@njit
+def _lw_accel(Y, V, dz, G, e, w_sigma, a_bottom, hybrid, a_top, phi, l, d, u, b, out):
+    """Y_ττ of the derived long-wave model at every node, in chain units.
+
+    (1 − D2/12) Y_ττ = −G − ∂_Z Φ,  Φ = [1 − e tanh(W/w_σ)] C⁺,  C = 1 − Y_Z, W = Y_τZ,
+    with Φ on the half nodes, the bottom node prescribed (a_0 = ``a_bottom``) and the top
+    node either prescribed (``hybrid``: a_J = ``a_top``) or free: Φ = 0 above it, half a
+    cell of mass, and Neumann data for the regularizing operator.
     """
-    J = y.size - 1
-    gh2 = gamma * h * h / (dz * dz)
-    l = np.empty(J + 1)
-    d = np.empty(J + 1)
-    u = np.empty(J + 1)
-    b = np.empty(J + 1)
-    for j in range(1, J + 1):
-        if j < J:
-            yp, vp = y[j + 1], v[j + 1]
-        else:  # stress-free top: y_z = 1, y_tz = 0 (even reflection of y − z and v)
-            yp, vp = y[J - 1] + 2.0 * dz, v[J - 1]
-        ym, vm = y[j - 1], v[j - 1]
-        yz = (yp - ym) / (2.0 * dz)
-        yzz = (yp - 2.0 * y[j] + ym) / (dz * dz)
-        vz = (vp - vm) / (2.0 * dz)
-        vzz = (vp - 2.0 * v[j] + vm) / (dz * dz)
-        R = (Ap / 3.0) * yzz - (h / 3.0) * (B * yz + e * alpha * Ap * vz) * yzz
-        # viscous term (1/6) e α A₊ y_zz y_tzz: a negative viscosity where y_zz < 0 (ill-posed);
-        # the "dissipative" form keeps its positive part only
-        visc = max(yzz, 0.0) if dissipative else yzz
-        R += (
-            h
-            * h
-            * (
-                2.0 * r * alpha * yz * yz * yzz
-                + e * alpha * B * yz * yzz * vz
-                + (e * alpha * Ap / 6.0) * visc * vzz
-            )
-        )
-        l[j] = -gh2
-        d[j] = 1.0 + 2.0 * gh2
-        u[j] = -gh2
-        b[j] = -g + Kh2m * R
-    if top_dirichlet:
+    J = Y.size - 1
+    for j in range(J):
+        C = 1.0 - (Y[j + 1] - Y[j]) / dz
+        if C > 0.0:
+            W = (V[j + 1] - V[j]) / dz
+            phi[j] = (1.0 - e * math.tanh(W / w_sigma)) * C
+        else:
+            phi[j] = 0.0
+    g2 = LW_GAMMA / (dz * dz)
+    for j in range(1, J):
+        l[j] = -g2
+        d[j] = 1.0 + 2.0 * g2
+        u[j] = -g2
+        b[j] = -G - (phi[j] - phi[j - 1]) / dz
+    if hybrid:
         l[J] = 0.0
         d[J] = 1.0
-        u[J] = 0.0
         b[J] = a_top
     else:
-        l[J] = -2.0 * gh2  # Neumann: a_{J+1} = a_{J−1}
-        u[J] = 0.0
+        l[J] = -2.0 * g2
+        d[J] = 1.0 + 2.0 * g2
+        b[J] = -G + phi[J - 1] / (0.5 * dz)
+    u[J] = 0.0
     b[1] -= l[1] * a_bottom
     for j in range(2, J + 1):
         w = l[j] / d[j - 1]
@@ -249,6 +270,196 @@ def _lw_rhs(
     for j in range(J - 1, 0, -1):
         out[j] = (b[j] - u[j] * out[j + 1]) / d[j]
     out[0] = a_bottom
+
+
+@njit
+def _floor_at(t, A, Om, tap_start, in_tap):
+    if in_tap:
+        s = Om * (t - tap_start)
+        return A * math.sin(s), A * Om * math.cos(s), -A * Om * Om * math.sin(s)
+    return 0.0, 0.0, 0.0
+
+
+@njit
+def _lw_set_ends(t, Y, V, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v):
+    y0, v0, a0 = _floor_at(t, A, Om, ts, in_tap)
+    Y[0] = y0
+    V[0] = v0
+    if hybrid:
+        Y[-1] = np.interp(t, top_t, top_y)
+        V[-1] = np.interp(t, top_t, top_v)
+    return a0
+
+
+@njit
+def _lw_run(
+    Y, V, dz, G, e, w_sigma, A, Om, T, dur, t_end, rec_t, hybrid, top_t, top_y, top_v,
+    top_a, cfl, out_y, out_v,
+):  # fmt: skip
+    """RK4 in time for :func:`_lw_accel`; the step follows the fastest linear rate.
+
+    The regularized operator bounds the wave frequency by sqrt(12(1 + e)) and the rate of
+    the viscosity that the smooth σ implies, e C/w_σ · k²/(1 + k²/12), by 12 e C_max/w_σ,
+    independently of dz. Steps end exactly at the floor's switches (t = kT, kT + π/ω) and
+    at record times. Returns (records written, status: 0 ok, 1 blow-up, time of blow-up).
+    """
+    n = Y.size
+    phi = np.empty(n - 1)
+    l = np.empty(n)
+    d = np.empty(n)
+    u = np.empty(n)
+    b = np.empty(n)
+    k1 = np.empty(n)
+    k2 = np.empty(n)
+    k3 = np.empty(n)
+    k4 = np.empty(n)
+    Ys = np.empty(n)
+    v1 = np.empty(n)
+    v2 = np.empty(n)
+    v3 = np.empty(n)
+    nrec = rec_t.size
+    i_rec = 0
+    t = 0.0
+    wave = math.sqrt(12.0 * (1.0 + e))
+    vmax0 = 1.0 + A * Om
+    eps = 1e-12 * max(1.0, t_end)
+    while True:
+        kk = math.floor((t + eps) / T)
+        ts = kk * T
+        in_tap = A > 0.0 and t + eps < ts + dur
+        seg_end = ts + dur if in_tap else (kk + 1) * T
+        _lw_set_ends(t, Y, V, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
+        while i_rec < nrec and rec_t[i_rec] <= t + eps:
+            out_y[i_rec] = Y
+            out_v[i_rec] = V
+            i_rec += 1
+        if t >= t_end - eps:
+            return i_rec, 0, t
+        stop = min(seg_end, t_end)
+        if i_rec < nrec and rec_t[i_rec] < stop:
+            stop = rec_t[i_rec]
+        while stop - t > eps:
+            cmax = 0.0
+            for j in range(n - 1):
+                cmax = max(cmax, 1.0 - (Y[j + 1] - Y[j]) / dz)
+            hs = min(stop - t, cfl / (wave + 12.0 * e * cmax / w_sigma))
+            at = np.interp(t, top_t, top_a) if hybrid else 0.0
+            a0 = _lw_set_ends(t, Y, V, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
+            _lw_accel(Y, V, dz, G, e, w_sigma, a0, hybrid, at, phi, l, d, u, b, k1)
+            th = t + 0.5 * hs
+            at = np.interp(th, top_t, top_a) if hybrid else 0.0
+            for j in range(n):
+                Ys[j] = Y[j] + 0.5 * hs * V[j]
+                v1[j] = V[j] + 0.5 * hs * k1[j]
+            a0 = _lw_set_ends(th, Ys, v1, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
+            _lw_accel(Ys, v1, dz, G, e, w_sigma, a0, hybrid, at, phi, l, d, u, b, k2)
+            for j in range(n):
+                Ys[j] = Y[j] + 0.5 * hs * v1[j]
+                v2[j] = V[j] + 0.5 * hs * k2[j]
+            a0 = _lw_set_ends(th, Ys, v2, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
+            _lw_accel(Ys, v2, dz, G, e, w_sigma, a0, hybrid, at, phi, l, d, u, b, k3)
+            for j in range(n):
+                Ys[j] = Y[j] + hs * v2[j]
+                v3[j] = V[j] + hs * k3[j]
+            t1 = t + hs
+            at = np.interp(t1, top_t, top_a) if hybrid else 0.0
+            a0 = _lw_set_ends(t1, Ys, v3, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
+            _lw_accel(Ys, v3, dz, G, e, w_sigma, a0, hybrid, at, phi, l, d, u, b, k4)
+            bad = False
+            for j in range(n):
+                Y[j] += hs / 6.0 * (V[j] + 2.0 * v1[j] + 2.0 * v2[j] + v3[j])
+                V[j] += hs / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+                if not (math.isfinite(Y[j]) and abs(V[j]) < 1e3 * vmax0):
+                    bad = True
+            t = t1
+            if bad:
+                return i_rec, 1, t
+            _lw_set_ends(t, Y, V, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
+
+
+def longwave_equilibrium(q: ColumnParams, z: np.ndarray) -> np.ndarray:
+    """Rest state of the discretized derived model with Y(0) = 0 and a free top.
+
+    The half-node forces balance the weight above them exactly: Φ_{j+½} = G (N − z_{j+½}),
+    so Y_{j+1} − Y_j = Δz (1 − Φ_{j+½}). The compression is the chain's, C(z) = G (N − z)
+    (the chain has c_k = (N − k) 𝔐 at label k, Eq. 26). Chain units; returns (J+1,).
+    """
+    zh = 0.5 * (z[1:] + z[:-1])
+    dz = np.diff(z)
+    return np.concatenate([[0.0], np.cumsum(dz * (1.0 - q.g * (q.N - zh)))])
+
+
+def solve_longwave(
+    q: ColumnParams,
+    t_end: float,
+    *,
+    dz: float,
+    top=None,
+    record_dt: float | None = None,
+    sigma_width: float = 0.01,
+    cfl: float = 1.0,
+    initial=None,
+) -> dict:
+    """Integrate the derived long-wave model in chain units (docs/column.md, "Long wave").
+
+    Parameters
+    ----------
+    q : ColumnParams in chain units (:func:`dimensionless`)
+    t_end : float, in units of sqrt(m/K)
+    dz : float, label spacing in units of h; N/dz is rounded to an integer
+    top : (t, y_top, v_top), optional, chain units: the discrete column's top surface
+        y_N + r (hybrid treatment, Section 4); the continuum's top node follows it,
+        shifted by the difference of rest heights. Without it the top is free (Φ = 0).
+    record_dt : output interval (default 0.01 T)
+    sigma_width : w_σ, the width of the smooth sign σ(W) = tanh(W/w_σ), in units of the
+        chain's sound speed h sqrt(K/m)
+    initial : (Y, V) on the nodes, optional (default: the rest state)
+
+    Returns
+    -------
+    dict: ``z`` (J+1,) labels, ``t`` (n,), ``y`` and ``v`` (n, J+1), ``rho`` (n, J) the
+    linear density (m/h)/Y_z of the cells (Eq. 41 in Lagrangian form), all in chain units.
+    """
+    _require_dimensionless(q, "solve_longwave")
+    J = max(2, int(round(q.N / dz)))
+    z = np.linspace(0.0, float(q.N), J + 1)
+    dz = float(z[1] - z[0])
+    if initial is None:
+        Y = longwave_equilibrium(q, z)
+        V = np.zeros_like(Y)
+    else:
+        Y = np.array(initial[0], dtype=np.float64)
+        V = np.array(initial[1], dtype=np.float64)
+    hybrid = top is not None
+    if hybrid:
+        top_t = np.asarray(top[0], dtype=np.float64)
+        top_y = np.asarray(top[1], dtype=np.float64) - float(top[1][0]) + float(Y[-1])
+        top_v = np.asarray(top[2], dtype=np.float64)
+        top_a = np.gradient(top_v, top_t)
+    else:
+        top_t = top_y = top_v = top_a = np.zeros(2)
+        top_t[1] = 1.0
+    record_dt = record_dt or 0.01 * q.T
+    rec_t = np.arange(int(math.floor(t_end / record_dt + 1e-9)) + 1) * record_dt
+    out_y = np.full((rec_t.size, J + 1), np.nan)
+    out_v = np.full((rec_t.size, J + 1), np.nan)
+    n, status, t_bad = _lw_run(
+        Y, V, dz, q.g, q.e, float(sigma_width), q.a, q.omega, q.T, q.tap_duration,
+        float(t_end), rec_t, hybrid, top_t, top_y, top_v, top_a, float(cfl), out_y, out_v,
+    )  # fmt: skip
+    if status:
+        from ..errors import SimulationError
+
+        raise SimulationError("column long-wave: solution blew up", time=t_bad, dz=dz)
+    y = out_y[:n]
+    return {
+        "z": z,
+        "z_cell": 0.5 * (z[1:] + z[:-1]),
+        "t": rec_t[:n],
+        "y": y,
+        "v": out_v[:n],
+        "rho": dz / np.diff(y, axis=1),
+    }
 
 
 @njit
@@ -288,272 +499,6 @@ def _transport_rate(rho, vel_face, dz, rho_bottom, wall_bottom, out):
                 flux[f] = vf * rho[i]
     for i in range(n):
         out[i] = -(flux[i + 1] - flux[i]) / dz
-
-
-def longwave_equilibrium(p: ColumnParams, z: np.ndarray, coeffs: LongWaveCoefficients):
-    """Static solution of the discretized Eq. (35) with y(0) = 0 and y_z(S) = 1 (Newton).
-
-    Returns (J+1,) float64 [length]; the residual of the discrete equations is ~1e-13 g.
-    """
-    dz = z[1] - z[0]
-    J = z.size - 1
-    h, r, al = p.h, p.r, coeffs.alpha
-    Kh2m = p.K * h * h / p.m
-
-    def Cf(q):
-        return coeffs.A_plus / 3 - h * coeffs.B * q / 3 + 2 * r * al * h * h * q * q
-
-    def dCf(q):
-        return -h * coeffs.B / 3 + 4 * r * al * h * h * q
-
-    y = z.astype(np.float64).copy()
-    for _ in range(60):
-        yp = np.append(y[2:], y[J - 1] + 2 * dz)
-        ym = y[:-1]
-        yz = (yp - ym) / (2 * dz)
-        yzz = (yp - 2 * y[1:] + ym) / dz**2
-        R = -p.g + Kh2m * Cf(yz) * yzz
-        dR_dp = Kh2m * (dCf(yz) * yzz / (2 * dz) + Cf(yz) / dz**2)
-        dR_dm = Kh2m * (-dCf(yz) * yzz / (2 * dz) + Cf(yz) / dz**2)
-        dR_d0 = Kh2m * (-2 * Cf(yz) / dz**2)
-        # top row: y_{J+1} = y_{J−1} + 2dz, so the two neighbour derivatives add on y_{J−1}
-        dR_dm[-1] += dR_dp[-1]
-        dR_dp[-1] = 0.0
-        ab = np.zeros((3, J))
-        ab[0, 1:] = dR_dp[:-1]
-        ab[1, :] = dR_d0
-        ab[2, :-1] = dR_dm[1:]
-        dy = solve_banded((1, 1), ab, -R)
-        y[1:] += dy
-        if np.max(np.abs(dy)) < 1e-14 * max(1.0, float(z[-1])):
-            break
-    return y
-
-
-def solve_longwave(
-    p: ColumnParams,
-    t_end: float,
-    *,
-    dz: float,
-    dt: float | None = None,
-    cfl: float = 0.5,
-    top=None,
-    initial: str = "equilibrium",
-    record_dt: float | None = None,
-    forcing=None,
-    exact=None,
-    alpha: float | None = None,
-    viscosity: str = "dissipative",
-) -> dict:
-    """Integrate the regularized long-wave model (Eq. 35) with RK4.
-
-    Parameters
-    ----------
-    p : ColumnParams (the discrete column's parameters; S = 2Nr)
-    t_end : float [time]
-    dz : float [length], label spacing; S/dz is rounded to an integer number of cells
-    dt : float [time], optional; default cfl·h√γ/c (stable for cfl < 2.8, any dz), also
-        limited by the density transport CFL in the run
-    top : (t (n,), y_top (n,), v_top (n,)), optional; the free top boundary from the
-        discrete solution (hybrid treatment, Section 4): the continuum's top point z = S
-        follows it (Dirichlet), shifted by the difference of rest heights; without it the
-        top is a stress-free surface
-    initial : ``"equilibrium"`` (static solution of the same discrete equations) or
-        ``"undeformed"`` (y(z, 0) = z, the paper's Eq. 39)
-    record_dt : float [time], optional output interval (default: every 0.01 T, ≥ dt)
-    viscosity : ``"dissipative"`` (default: y_zz⁺ in the y_zz y_tzz term) or
-        ``"as_printed"`` (the viscosity is negative wherever y_zz < 0; the figure-1 problem
-        then blows up under refinement, at Δz = h/64 after 0.21 s)
-    forcing : callable (z, t) -> (J+1,) extra acceleration (manufactured-solution tests)
-    exact : callable (z, t) -> (y, v), optional Dirichlet data at z = 0 and initial state
-        (manufactured-solution tests)
-
-    Returns
-    -------
-    dict: ``z`` (J+1,), ``t`` (n,), ``y``/``v`` (n, J+1) [length, length/time], ``rho``
-    (n, J) [mass/length] from Eq. (41) at cell centres ``z_cell``, ``coeffs``, ``dt``.
-    """
-    co = longwave_coefficients(p, alpha)
-    S = 2 * p.N * p.r
-    J = max(2, int(round(S / dz)))
-    z = np.linspace(0.0, S, J + 1)
-    dz = z[1] - z[0]
-    if dt is None:
-        dt = cfl * p.h * math.sqrt(co.gamma) / co.c
-    if exact is not None:
-        y, v = (np.array(a, dtype=np.float64) for a in exact(z, 0.0))
-    elif initial == "equilibrium":
-        y = longwave_equilibrium(p, z, co)
-        v = np.zeros_like(y)
-    elif initial == "undeformed":
-        y = z.copy()
-        v = np.zeros_like(y)
-    else:
-        raise ValueError(f"initial must be 'equilibrium' or 'undeformed', got {initial!r}")
-    if top is not None:
-        # the top point follows the discrete column's top (y_N + r), shifted by the
-        # difference of rest heights (with the paper's coefficients the L-W column is ~5x
-        # stiffer than the chain and sags 0.5 cm instead of 2.75 cm for N = 10)
-        top_t = np.asarray(top[0], dtype=np.float64)
-        top_y = np.asarray(top[1], dtype=np.float64) - float(top[1][0]) + float(y[-1])
-        top_v = np.asarray(top[2], dtype=np.float64)
-        top_a = np.gradient(top_v, top_t)
-    rho = np.full(J, p.m / (2 * p.r))
-    Kh2m = p.K * p.h**2 / p.m
-    record_dt = record_dt or max(0.01 * p.T, dt)
-    n_rec = int(math.floor(t_end / record_dt + 1e-9)) + 1
-    out_t = np.arange(n_rec) * record_dt
-    out_y = np.full((n_rec, J + 1), np.nan)
-    out_v = np.full((n_rec, J + 1), np.nan)
-    out_r = np.full((n_rec, J), np.nan)
-    acc = np.empty(J + 1)
-    drho = np.empty(J)
-
-    def bottom(t, seg):
-        if exact is not None:
-            yb, vb = exact(np.zeros(1), t)
-            return float(yb[0]), float(vb[0]), None
-        return floor_state(p, t, seg[3], seg[2])
-
-    def _max_rate(yy, vv):
-        # Bound of the fastest rate of the regularized Eq. (35) linearized about the current
-        # state: R = Q y_zz + ν y_tzz + β y_tz + ... with (1 + γh²k²) on the left gives
-        # ω ≤ sqrt(K|Q|/(mγ)), viscous rate ≤ ν/(γh²), first-order rate ≤ |β|/(2h√γ).
-        # Q and ν grow like 1/dz² where the floor's velocity jumps (Eq. 3), so the step
-        # follows them.
-        yz = np.gradient(yy, dz)
-        vz = np.gradient(vv, dz)
-        yzz = np.zeros_like(yy)
-        vzz = np.zeros_like(vv)
-        yzz[1:-1] = (yy[2:] - 2 * yy[1:-1] + yy[:-2]) / dz**2
-        vzz[1:-1] = (vv[2:] - 2 * vv[1:-1] + vv[:-2]) / dz**2
-        ea = p.e * co.alpha
-        Q = co.A_plus / 3 - p.h / 3 * (co.B * yz + ea * co.A_plus * vz)
-        Q = Q + p.h**2 * (
-            2 * p.r * co.alpha * yz**2 + ea * co.B * yz * vz + ea * co.A_plus / 6 * vzz
-        )
-        wave = math.sqrt(p.K * max(float(np.max(np.abs(Q))), co.C1) / (p.m * co.gamma))
-        nu = Kh2m * p.h**2 * ea * co.A_plus / 6 * float(np.max(np.abs(yzz)))
-        beta = Kh2m * float(
-            np.max(np.abs(yzz * (p.h / 3 * ea * co.A_plus - p.h**2 * ea * co.B * yz)))
-        )
-        return wave + nu / (co.gamma * p.h**2) + beta / (2 * p.h * math.sqrt(co.gamma))
-
-    def top_state(t):
-        return (
-            float(np.interp(t, top_t, top_y)),
-            float(np.interp(t, top_t, top_v)),
-            float(np.interp(t, top_t, top_a)),
-        )
-
-    def set_ends(t, seg, yy, vv):
-        yb, vb, _ = bottom(t, seg)
-        yy[0], vv[0] = yb, vb
-        if top is not None:
-            yy[-1], vv[-1], _ = top_state(t)
-
-    def deriv(t, yy, vv, rr, seg):
-        yb, vb, ab = bottom(t, seg)
-        yy = yy.copy()
-        vv = vv.copy()
-        set_ends(t, seg, yy, vv)
-        if ab is None:  # manufactured: bottom acceleration from the exact solution
-            eps = 1e-6 * max(dt, 1e-12)
-            ab = (bottom(t + eps, seg)[1] - bottom(t - eps, seg)[1]) / (2 * eps)
-        a_top = top_state(t)[2] if top is not None else 0.0
-        _lw_rhs(
-            yy,
-            vv,
-            dz,
-            Kh2m,
-            p.h,
-            p.r,
-            co.alpha,
-            p.e,
-            co.A_plus,
-            co.B,
-            p.g,
-            co.gamma,
-            ab,
-            top is not None,
-            a_top,
-            viscosity == "dissipative",
-            acc,
-        )
-        a = acc.copy()
-        if forcing is not None:
-            f = np.asarray(forcing(z, t), dtype=np.float64)
-            # the regularizing operator acts on the forcing too
-            a[1:] += _apply_inverse(f, dz, co.gamma * p.h**2, z.size)[1:]
-        vface = np.empty(J + 1)
-        vface[:] = vv  # cell i spans nodes i..i+1; faces are the nodes
-        _transport_rate(rr, vface, dz, p.m / (2 * p.r), False, drho)
-        return vv, a, drho.copy()
-
-    segs = _segments(p, t_end) if exact is None else [(0.0, t_end, False, 0.0)]
-    # a velocity 1000 times the wave speed is a numerical blow-up, not physics
-    v_blowup = 1e3 * (co.c + p.a * p.omega + float(np.max(np.abs(v))))
-    i_rec = 0
-    t = 0.0
-    for seg in segs:
-        t = seg[0]
-        while True:
-            while i_rec < n_rec and out_t[i_rec] <= t + 1e-9 * dt:
-                set_ends(t, seg, y, v)
-                out_y[i_rec], out_v[i_rec], out_r[i_rec] = y, v, rho
-                i_rec += 1
-            if seg[1] - t <= 1e-9 * dt:
-                break
-            stop = seg[1]
-            if i_rec < n_rec and out_t[i_rec] < stop:
-                stop = out_t[i_rec]
-            while stop - t > 1e-9 * dt:
-                hs = min(dt, stop - t, cfl / _max_rate(y, v))
-                vmax = max(float(np.max(np.abs(v))), 1e-30)
-                hs = min(hs, 0.8 * dz / vmax)
-                k1 = deriv(t, y, v, rho, seg)
-                k2 = deriv(
-                    t + hs / 2, y + hs / 2 * k1[0], v + hs / 2 * k1[1], rho + hs / 2 * k1[2], seg
-                )
-                k3 = deriv(
-                    t + hs / 2, y + hs / 2 * k2[0], v + hs / 2 * k2[1], rho + hs / 2 * k2[2], seg
-                )
-                k4 = deriv(t + hs, y + hs * k3[0], v + hs * k3[1], rho + hs * k3[2], seg)
-                y = y + hs / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0])
-                v = v + hs / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1])
-                rho = rho + hs / 6 * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2])
-                t += hs
-                set_ends(t, seg, y, v)
-                if not np.all(np.isfinite(y)) or np.max(np.abs(v)) > v_blowup:
-                    from ..errors import SimulationError
-
-                    raise SimulationError(
-                        "column long-wave: solution blew up", time=t, dz=dz, dt=dt
-                    )
-    return {
-        "z": z,
-        "z_cell": 0.5 * (z[1:] + z[:-1]),
-        "t": out_t[:i_rec],
-        "y": out_y[:i_rec],
-        "v": out_v[:i_rec],
-        "rho": out_r[:i_rec],
-        "coeffs": co,
-        "dt": dt,
-    }
-
-
-def _apply_inverse(f, dz, gh2_len2, n):
-    """(1 − γh²D2)^{-1} f with f_0 fixed (Dirichlet 0) and Neumann top; returns (n,)."""
-    J = n - 1
-    gh2 = gh2_len2 / dz**2
-    ab = np.zeros((3, J))
-    ab[0, 1:] = -gh2
-    ab[1, :] = 1 + 2 * gh2
-    ab[2, :-1] = -gh2
-    ab[2, -2] = -2 * gh2  # Neumann row J: coefficient of a_{J-1}
-    out = np.zeros(n)
-    out[1:] = solve_banded((1, 1), ab, f[1:])
-    return out
 
 
 # --------------------------------------------------------------------------- BSR
@@ -662,9 +607,9 @@ def solve_bsr(
     forcing=None,
     exact=None,
     stop_when_collapsed: bool = True,
-    kernel: bool = True,
+    kernel: str = "printed",
 ) -> dict:
-    """Integrate the BSR model (Eqs. 45–48) with SSP-RK3 finite volumes.
+    """Integrate a BSR model (Eqs. 45–48) with SSP-RK3 finite volumes.
 
     Parameters
     ----------
@@ -678,7 +623,8 @@ def solve_bsr(
         (default: the discrete equilibrium positions of the N particles)
     forcing, exact : manufactured-solution hooks, ``forcing(z, t)`` is added to the
         source, ``exact(z, t)`` gives u (initial and bottom data)
-    kernel : bool; ``False`` drops the integral of Eq. (45) (transport-only checks)
+    kernel : ``"printed"`` (Eq. 45 as printed, :func:`_bsr_force`) or ``"none"``
+        (transport only)
     stop_when_collapsed : stop once every tracer rests on the floor (the model has no force
         that can lift it again without a tap moving the floor; positions then stay put)
 
@@ -696,10 +642,12 @@ def solve_bsr(
         raise ValueError(f"BSR: h/dz must be an integer, got h = {p.h}, dz = {dz}")
     n = int(round(Z / dz))
     zc = (np.arange(n) + 0.5) * dz
-    phi = _TopBoundary(top, S)
+    if kernel not in ("printed", "none"):
+        raise ValueError(f"BSR: kernel must be printed or none, got {kernel!r}")
     b, c = 7 * p.h, 3 * p.h
     u = np.zeros(n) if exact is None else np.array(exact(zc, 0.0), dtype=np.float64)
     rho = np.where(zc < S, p.m / (2 * p.r), 0.0)
+    phi = _TopBoundary(top, S)
     X = np.asarray(equilibrium_positions(p) if tracers is None else tracers, dtype=np.float64)
     X = X.copy()
     record_dt = record_dt or 0.01 * p.T
@@ -722,9 +670,8 @@ def solve_bsr(
     def rate(t, uu, rr, seg):
         ub, _ = bottom(t, seg)
         _burgers_rate(uu, ub, dz, adv)
-        _bsr_force(
-            uu, ub, dz, H, zc, p.K / p.m if kernel else 0.0, p.h, p.r, p.e, b, c, p.g, phi(t), src
-        )
+        K_m = p.K / p.m if kernel == "printed" else 0.0
+        _bsr_force(uu, ub, dz, H, zc, K_m, p.h, p.r, p.e, b, c, p.g, phi(t), src)
         du = adv + src
         if forcing is not None:
             du = du + np.asarray(forcing(zc, t), dtype=np.float64)

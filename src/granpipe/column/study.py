@@ -502,217 +502,251 @@ def chaos_map(points: Iterable[xr.Dataset], confidence: float = 0.95):
 
 
 # --------------------------------------------------------------------------- 4. continuum
-def _discrete_record(p, n_taps, record_dt, step_factor):
-    s = d.initial_state(p)
+CONTINUUM_MODELS = ("longwave", "bsr")
+"""The continuum models compared: the derived long-wave model and BSR as printed (Eq. 45)."""
+
+TOP_TREATMENTS = ("hybrid", "free")
+"""``hybrid``: the continuum's top follows the discrete top (Section 4); ``free``: Φ = 0."""
+
+MODEL_NAMES = {"longwave": "long-wave (derived)", "bsr": "BSR (Eq. 45 as printed)"}
+
+
+def _discrete_record(q, n_taps, record_dt, step_factor):
+    s = d.initial_state(q)
     return d.simulate(
-        p, s, n_taps, h=d.default_step(p, step_factor), record_dt=record_dt, sample_fracs=()
+        q, s, n_taps, h=d.default_step(q, step_factor), record_dt=record_dt, sample_fracs=()
     )
 
 
-def _distance(model_y, disc_y, r):
-    """RMS over records and particles of absolute positions and of displacements from rest."""
-    ok = np.all(np.isfinite(model_y), axis=1)
-    a = model_y[ok] - disc_y[ok]
-    disp = (model_y[ok] - model_y[0]) - (disc_y[ok] - disc_y[0])
-    return float(np.sqrt(np.mean(a * a))), float(np.sqrt(np.mean(disp * disp)))
+def _discrete_top(q, disc):
+    """(t, y_N + r, v_N) of a discrete record: the free top of the hybrid treatment."""
+    return disc["t"], disc["y"][:, -1] + q.r, disc["v"][:, -1]
+
+
+def _solve_continuum(model, q, t_end, refinement, top, record_dt, sigma_width):
+    """Positions of the N particles in one continuum model, chain units: (t, (n_t, N), sol).
+
+    L-W: y(z_i, t) at the centre labels z_i = i − 1/2; BSR: tracers started at the
+    discrete rest positions.
+    """
+    dz = 1.0 / refinement
+    if model == "longwave":
+        sol = cont.solve_longwave(
+            q, t_end, dz=dz, top=top, record_dt=record_dt, sigma_width=sigma_width
+        )
+        zi = np.arange(1, q.N + 1) - 0.5
+        y = np.array([np.interp(zi, sol["z"], row) for row in sol["y"]])
+    elif model == "bsr":
+        sol = cont.solve_bsr(q, t_end, dz=dz, top=top, record_dt=record_dt)
+        y = sol["tracers"]
+    else:
+        raise ValueError(f"unknown continuum model {model!r}; known: {CONTINUUM_MODELS}")
+    return sol["t"], y, sol
+
+
+def _distance(model_y, disc_y):
+    """RMS distances to the discrete column, in units of h (chain units in, numbers out).
+
+    Returns (positions, displacements from each one's own rest state, displacements
+    relative to the RMS displacement of the discrete column).
+    """
+    a = model_y - disc_y
+    disp = (model_y - model_y[0]) - (disc_y - disc_y[0])
+    ref = disc_y - disc_y[0]
+    rms_disp = float(np.sqrt(np.mean(disp * disp)))
+    return (
+        float(np.sqrt(np.mean(a * a))),
+        rms_disp,
+        rms_disp / float(np.sqrt(np.mean(ref * ref))),
+    )
+
+
+def _on_records(disc, t, fine):
+    idx = np.clip(np.round(t / fine).astype(int), 0, disc["t"].size - 1)
+    return disc["y"][idx]
 
 
 def continuum_comparison(
     phys: Mapping,
     n_taps: int,
-    lw_dz: float,
-    bsr_dz: float,
+    lw_refinement: int,
+    bsr_refinement: int,
     record_dt: float,
-    viscosity: str = "dissipative",
+    sigma_width: float = 0.01,
     step_factor: float = 0.1,
 ):
-    """Discrete column, L-W and BSR solutions over ``n_taps`` taps, on common records (Fig. 2).
+    """Discrete column, L-W and BSR with the hybrid and the free top over ``n_taps`` taps.
 
-    Returns (dataset, distances). The continuum positions of particle i are y(z_i, t) at
-    the label z_i = (2i − 1) r (L-W) and the tracer started at the discrete y_i(0) (BSR).
-    Distances: RMS of absolute positions and of displacements from each model's own rest
-    state, over records and particles [length].
+    Everything is computed in chain units (h, sqrt(m/K), m: docs/column.md); the
+    physical column ``phys`` only sets the dimensionless numbers. ``record_dt`` is in the
+    units of ``phys``. Returns (dataset on common records, distances per model and top).
     """
     p = physics(phys)
-    fine = min(record_dt, 1e-3)
-    disc = _discrete_record(p, n_taps, fine, step_factor)
-    top = (disc["t"], disc["y"][:, -1] + p.r, disc["v"][:, -1])
-    t_end = n_taps * p.T
-    lw = cont.solve_longwave(p, t_end, dz=lw_dz, top=top, record_dt=record_dt, viscosity=viscosity)
-    bsr = cont.solve_bsr(p, t_end, dz=bsr_dz, top=top, record_dt=record_dt)
-    t = lw["t"]
-    n = min(t.size, bsr["t"].size)
-    t = t[:n]
-    idx = np.clip(np.round(t / fine).astype(int), 0, disc["t"].size - 1)
-    yd = disc["y"][idx]
-    zi = (2 * np.arange(1, p.N + 1) - 1) * p.r
-    ylw = np.array([np.interp(zi, lw["z"], row) for row in lw["y"][:n]])
-    ybsr = bsr["tracers"][:n]
+    q = cont.dimensionless(p)
+    sc = cont.chain_scales(p)
+    rec = record_dt / sc.time
+    fine = min(rec, q.T / 1000)
+    disc = _discrete_record(q, n_taps, fine, step_factor)
+    top = _discrete_top(q, disc)
+    t_end = n_taps * q.T
+    runs = {}
+    for model, k in (("longwave", lw_refinement), ("bsr", bsr_refinement)):
+        for treat in TOP_TREATMENTS:
+            runs[model, treat] = _solve_continuum(
+                model, q, t_end, k, top if treat == "hybrid" else None, rec, sigma_width
+            )
+    t = runs["longwave", "hybrid"][0]
+    yd = _on_records(disc, t, fine)
+    lab = {"units": "h"}
+    data = {
+        "y_discrete": (("time", "particle"), yd, {**lab, "long_name": "discrete y_i / h"}),
+        "floor": (
+            "time",
+            cont.floor_position(q, t),
+            {**lab, "long_name": "floor height y0 / h"},
+        ),
+    }
     dist = {}
-    for name, ym in (("longwave", ylw), ("bsr", ybsr)):
-        rms_abs, rms_disp = _distance(ym, yd, p.r)
-        dist[name] = {"rms_abs": rms_abs, "rms_disp": rms_disp}
-    dist["bsr"]["collapse_time"] = float(bsr["collapse_time"])
-    lab = {"units": "length"}
+    for (model, treat), (_, y, _sol) in runs.items():
+        # BSR as printed stops once it has collapsed; its tracers then rest on the floor
+        yy = np.full_like(yd, np.nan)
+        yy[: y.shape[0]] = y
+        dist[model, treat] = _distance(yy, yd)
+        data[f"y_{model}_{treat}"] = (
+            ("time", "particle"),
+            yy,
+            {**lab, "long_name": f"{MODEL_NAMES[model]}, {treat} top: particle heights / h"},
+        )
+    lw = runs["longwave", "hybrid"][2]
+    data["y_longwave_field"] = (
+        ("time", "label"),
+        lw["y"],
+        {**lab, "long_name": "long-wave (derived), hybrid top: height y(z, t) / h"},
+    )
+    attrs = {
+        "length_scale": sc.length,
+        "time_scale": sc.time,
+        "G": q.g,
+        "tap_amplitude": q.a,
+        "tap_duration": q.tap_duration,
+        "period": q.T,
+        "lw_refinement": int(lw_refinement),
+        "bsr_refinement": int(bsr_refinement),
+        "sigma_width": float(sigma_width),
+        "N": q.N,
+    }
+    for (model, treat), (pos, disp, rel) in dist.items():
+        attrs[f"rms_positions_{model}_{treat}"] = pos
+        attrs[f"rms_displacements_{model}_{treat}"] = disp
+        attrs[f"relative_displacements_{model}_{treat}"] = rel
+    for treat in TOP_TREATMENTS:
+        attrs[f"bsr_collapse_time_{treat}"] = float(runs["bsr", treat][2]["collapse_time"])
     ds = xr.Dataset(
-        {
-            "y_discrete": (
-                ("time", "particle"),
-                yd,
-                {**lab, "long_name": "discrete particle height y_i"},
-            ),
-            "y_longwave_particles": (
-                ("time", "particle"),
-                ylw,
-                {**lab, "long_name": "L-W y(z_i, t) at particle labels"},
-            ),
-            "y_bsr_particles": (
-                ("time", "particle"),
-                ybsr,
-                {**lab, "long_name": "BSR tracer heights started at y_i(0)"},
-            ),
-            "y_longwave": (
-                ("time", "label"),
-                lw["y"][:n],
-                {**lab, "long_name": "L-W height y(z, t) of label z"},
-            ),
-            "rho_longwave": (
-                ("time", "cell"),
-                lw["rho"][:n],
-                {"units": "mass/length", "long_name": "L-W density from Eq. (41)"},
-            ),
-            "u_bsr": (
-                ("time", "height"),
-                bsr["u"][:n],
-                {"units": "length/time", "long_name": "BSR velocity u(z, t) (NaN after collapse)"},
-            ),
-            "rho_bsr": (
-                ("time", "height"),
-                bsr["rho"][:n],
-                {
-                    "units": "mass/length",
-                    "long_name": "BSR density from Eq. (48) (NaN after collapse)",
-                },
-            ),
-            "floor": ("time", cont.floor_position(p, t), {**lab, "long_name": "floor height y0"}),
-        },
+        data,
         coords={
-            "time": ("time", t, {"units": "time", "long_name": "time"}),
+            "time": ("time", t, {"units": "sqrt(m/K)", "long_name": "time"}),
             "particle": (
                 "particle",
-                np.arange(1, p.N + 1),
+                np.arange(1, q.N + 1),
                 {"units": "1", "long_name": "particle index"},
             ),
-            "label": (
-                "label",
-                lw["z"],
-                {**lab, "long_name": "Lagrangian label z of the L-W column"},
-            ),
-            "cell": ("cell", lw["z_cell"], {**lab, "long_name": "L-W cell centre label"}),
-            "height": (
-                "height",
-                bsr["z"],
-                {**lab, "long_name": "BSR Eulerian height (cell centre)"},
-            ),
+            "label": ("label", lw["z"], {**lab, "long_name": "Lagrangian label z / h"}),
         },
-        attrs={
-            "rms_abs_longwave": dist["longwave"]["rms_abs"],
-            "rms_disp_longwave": dist["longwave"]["rms_disp"],
-            "rms_abs_bsr": dist["bsr"]["rms_abs"],
-            "rms_disp_bsr": dist["bsr"]["rms_disp"],
-            "bsr_collapse_time": dist["bsr"]["collapse_time"],
-            "lw_dz": lw_dz,
-            "bsr_dz": bsr_dz,
-            "lw_dt": float(lw["dt"]),
-            "lw_C1": lw["coeffs"].C1,
-            "lw_gamma": lw["coeffs"].gamma,
-            "lw_wave_speed": lw["coeffs"].c,
-            "viscosity": viscosity,
-            "r": p.r,
-        },
+        attrs=attrs,
     )
-    return ds, dist
+    return ds, {f"{m}_{t}": v for (m, t), v in dist.items()}
 
 
 def continuum_convergence(
     phys: Mapping,
     t_end: float,
-    refinements: Iterable[int],
+    lw_refinements: Iterable[int],
     bsr_refinements: Iterable[int],
     bsr_t_end: float,
-    viscosity: str = "dissipative",
+    sigma_width: float = 0.01,
     step_factor: float = 0.1,
 ):
-    """Self-convergence of both solvers on the Fig. 2 problem under grid refinement.
+    """Both models and both tops under grid refinement, in chain units.
 
-    L-W: Δz = h/k for k in ``refinements``; e_k = max over records and coarsest nodes of
-    |y(h/k) − y(h/2k)|. BSR: e_k = max over records of |X(h/k) − X(h/2k)| of the particle
-    tracers (until ``bsr_t_end``). Observed order log2(e_k / e_2k).
+    For each model, top treatment and refinement k (Δz = h/k): the RMS distances to the
+    discrete column (:func:`_distance`) and the successive difference
+    e_k = max over records and particles of |y(h/k) − y(h/2k)|, with observed orders
+    log2(e_k / e_2k). ``t_end`` (L-W) and ``bsr_t_end`` (BSR) are in the units of
+    ``phys``; BSR as printed stops when it has collapsed.
     """
     p = physics(phys)
-    disc = _discrete_record(p, max(1, math.ceil(t_end / p.T)), 1e-3, step_factor)
-    top = (disc["t"], disc["y"][:, -1] + p.r, disc["v"][:, -1])
-    rec = 0.01 * p.T
-    ks = sorted(int(k) for k in refinements)
-    sols = {
-        k: cont.solve_longwave(p, t_end, dz=p.h / k, top=top, record_dt=rec, viscosity=viscosity)
-        for k in ks
+    q = cont.dimensionless(p)
+    sc = cont.chain_scales(p)
+    fine = q.T / 1000
+    ends = {"longwave": t_end / sc.time, "bsr": bsr_t_end / sc.time}
+    disc = _discrete_record(q, max(1, math.ceil(max(ends.values()) / q.T)), fine, step_factor)
+    top = _discrete_top(q, disc)
+    ks = {"longwave": sorted(int(k) for k in lw_refinements)}
+    ks["bsr"] = sorted(int(k) for k in bsr_refinements)
+    n_k = max(len(v) for v in ks.values())
+    shape = (len(CONTINUUM_MODELS), len(TOP_TREATMENTS), n_k)
+    fields = {
+        k: np.full(shape, np.nan)
+        for k in ("rms_positions", "rms_displacements", "relative_displacements", "error")
     }
-    coarse = sols[ks[0]]["z"]
-
-    def on_coarse(sol):
-        return np.array([np.interp(coarse, sol["z"], row) for row in sol["y"]])
-
-    lw_err = [
-        float(np.max(np.abs(on_coarse(sols[a]) - on_coarse(sols[b]))))
-        for a, b in zip(ks[:-1], ks[1:], strict=True)
-    ]
-    bks = sorted(int(k) for k in bsr_refinements)
-    bsols = {k: cont.solve_bsr(p, bsr_t_end, dz=p.h / k, top=top, record_dt=rec / 10) for k in bks}
-    bsr_err = [
-        float(np.nanmax(np.abs(bsols[a]["tracers"] - bsols[b]["tracers"])))
-        for a, b in zip(bks[:-1], bks[1:], strict=True)
-    ]
-
-    def orders(err, ks_):
-        # successive differences e_k = |u_k − u_2k| fall like dz^p: p = log2(e_k / e_2k)
-        e = np.asarray(err)
-        ratio = np.array(ks_[1 : len(e)]) / np.array(ks_[: len(e) - 1])
-        return np.log(e[:-1] / e[1:]) / np.log(ratio)
-
-    ds = xr.Dataset(
-        {
-            "lw_error": (
-                "lw_refinement",
-                np.array(lw_err),
-                {"units": "length", "long_name": "L-W max |y - y_finest|"},
-            ),
-            "bsr_error": (
-                "bsr_refinement",
-                np.array(bsr_err),
-                {"units": "length", "long_name": "BSR max |X - X_finest| of tracers"},
-            ),
-        },
-        coords={
-            "lw_refinement": (
-                "lw_refinement",
-                np.array(ks[:-1]),
-                {"units": "1", "long_name": "h / dz (L-W)"},
-            ),
-            "bsr_refinement": (
-                "bsr_refinement",
-                np.array(bks[:-1]),
-                {"units": "1", "long_name": "h / dz (BSR)"},
-            ),
-        },
-        attrs={
-            "lw_finest": ks[-1],
-            "bsr_finest": bks[-1],
-            "h": p.h,
-            "t_end": t_end,
-            "bsr_t_end": bsr_t_end,
-            "lw_orders": " ".join(f"{o:.3f}" for o in orders(lw_err, ks)),
-            "bsr_orders": " ".join(f"{o:.3f}" for o in orders(bsr_err, bks)),
-        },
+    refine = np.full((len(CONTINUUM_MODELS), n_k), -1, dtype=np.int64)
+    orders = {}
+    for i, model in enumerate(CONTINUUM_MODELS):
+        rec = ends[model] / 100
+        refine[i, : len(ks[model])] = ks[model]
+        for j, treat in enumerate(TOP_TREATMENTS):
+            ys = []
+            for n, k in enumerate(ks[model]):
+                t, y, _ = _solve_continuum(
+                    model, q, ends[model], k, top if treat == "hybrid" else None, rec, sigma_width
+                )
+                yd = _on_records(disc, t, fine)
+                yy = np.full((int(round(ends[model] / rec)) + 1, q.N), np.nan)
+                yy[: y.shape[0]] = y[: yy.shape[0]]
+                if y.shape[0] < yy.shape[0]:  # collapsed BSR: tracers rest on the floor
+                    tt = np.arange(yy.shape[0]) * rec
+                    yy[y.shape[0] :] = cont.floor_position(q, tt[y.shape[0] :])[:, None]
+                    yd = _on_records(disc, tt, fine)
+                else:
+                    yd = yd[: yy.shape[0]]
+                (
+                    fields["rms_positions"][i, j, n],
+                    fields["rms_displacements"][i, j, n],
+                    fields["relative_displacements"][i, j, n],
+                ) = _distance(yy, yd)
+                ys.append(yy)
+            err = [float(np.max(np.abs(a - b))) for a, b in zip(ys[:-1], ys[1:], strict=True)]
+            fields["error"][i, j, : len(err)] = err
+            e = np.asarray(err)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                orders[model, treat] = np.log2(e[:-1] / e[1:])
+    dims = ("model", "top", "level")
+    names = {
+        "rms_positions": ("h", "RMS distance of particle heights to the discrete column"),
+        "rms_displacements": ("h", "RMS distance of displacements from rest"),
+        "relative_displacements": (
+            "1",
+            "RMS distance of displacements / RMS displacement of the discrete column",
+        ),
+        "error": ("h", "max |y(h/k) - y(h/2k)| over records and particles"),
+    }
+    data = {
+        k: (dims, v, {"units": names[k][0], "long_name": names[k][1]}) for k, v in fields.items()
+    }
+    data["refinement"] = (
+        ("model", "level"),
+        refine,
+        {"units": "1", "long_name": "h / dz (-1: not run)"},
     )
-    return ds
+    attrs = {"t_end": ends["longwave"], "bsr_t_end": ends["bsr"], "sigma_width": sigma_width}
+    for (model, treat), o in orders.items():
+        attrs[f"orders_{model}_{treat}"] = " ".join(f"{x:.3f}" for x in o)
+    return xr.Dataset(
+        data,
+        coords={
+            "model": ("model", list(CONTINUUM_MODELS), {"long_name": "continuum model"}),
+            "top": ("top", list(TOP_TREATMENTS), {"long_name": "top boundary treatment"}),
+            "level": ("level", np.arange(n_k), {"units": "1", "long_name": "refinement level"}),
+        },
+        attrs=attrs,
+    )
