@@ -155,14 +155,14 @@ def _quick(repo):
         (("drum", "figures", "snapshot_batch"), 7, "drum.figures.snapshot_batch"),
         (("drum", "ensemble", "n_replicas"), 10**6, "simulation jobs"),
         (("box", "fits", "N_l"), 33, "box.fits.N_l"),
-        (("column", "continuum", "bsr_dz"), 0.3, "column.continuum.bsr_dz"),
+        (("column", "continuum", "sigma_width"), 0.0, "column.continuum.sigma_width"),
         (("column", "continuum", "convergence", "lw_refinements"), [2, 3, 8], "lw_refinements"),
     ],
 )
 def test_refusals_before_any_job_name_the_key(repo, path, value, match):
     """NaN and inf anywhere, fit windows outside the record or reversed, min > max, the
     snapshot batch beyond the batches, a plan too large to build, a grid selection not in
-    the grid, a BSR cell that does not divide h, refinements that are not nested."""
+    the grid, a smooth sign of zero width, refinements that are not nested."""
     cfg = _quick(repo)
     _set(cfg, path, value)
     with pytest.raises(ConfigError, match=match.replace(".", r"\.")):

@@ -4,6 +4,7 @@ import json
 
 import numpy as np
 import pandas as pd
+import pytest
 from click.testing import CliRunner
 
 from granpipe.column.cli import cli
@@ -75,10 +76,10 @@ def test_stage_pipeline(tmp_path):
     contp = {
         "physics": SMALL,
         "n_taps": 1,
-        "lw_dz": 0.5,
-        "bsr_dz": 0.5,
+        "lw_refinement": 2,
+        "bsr_refinement": 2,
         "record_dt": 0.01,
-        "viscosity": "dissipative",
+        "sigma_width": 0.01,
         "step_factor": 0.2,
         "convergence": {
             "t_end": 0.2,
@@ -170,9 +171,21 @@ def test_stage_pipeline(tmp_path):
         "n",
         "paper_value",
     ]
-    assert {"relaxed_density", "continuum_rms_abs_longwave", "bsr_collapse_time"} <= set(
-        df.quantity
-    )
+    rows = {
+        "relaxed_density",
+        "bsr_collapse_time[top=free]",
+        *(
+            f"continuum_{v}[model={m},top={t}]"
+            for v in ("rms_positions", "relative_displacements", "observed_order_finest")
+            for m in ("longwave", "bsr")
+            for t in ("hybrid", "free")
+        ),
+    }
+    assert rows <= set(df.quantity)
+    val = df.set_index("quantity")["value"]
+    # the printed Eq. (35) changes its wave speed with the unit system; the chain's is 1
+    assert val["printed_eq35_wave_speed[units=cgs]"] == pytest.approx(np.sqrt(31 / 6), rel=1e-9)
+    assert val["printed_eq35_wave_speed[units=SI]"] == pytest.approx(np.sqrt(7 / 6 + 4e-4))
     m = read_dataset(ens_c)
     assert m.sizes == {"a": 2, "T": 1}
     # replicas are reproducible from their seeds: the same batch gives the same numbers

@@ -16,7 +16,6 @@ perturbed per replica inside the runs.
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -131,13 +130,13 @@ def continuum_cmd(params, out):
     ds, dist = continuum_comparison(
         params["physics"],
         int(params["n_taps"]),
-        float(params["lw_dz"]),
-        float(params["bsr_dz"]),
+        int(params["lw_refinement"]),
+        int(params["bsr_refinement"]),
         float(params["record_dt"]),
-        params["viscosity"],
+        float(params["sigma_width"]),
         float(params["step_factor"]),
     )
-    _log(f"distances to the discrete column: {json.dumps(dist)}")
+    _log(f"distances to the discrete column [h] (positions, displacements, relative): {dist}")
     _write(ds, out, params, stage="runs", wall_time_s=time.time() - t0)
 
 
@@ -156,10 +155,10 @@ def convergence_cmd(params, out):
         c["lw_refinements"],
         c["bsr_refinements"],
         float(c["bsr_t_end"]),
-        params["viscosity"],
+        float(params["sigma_width"]),
         float(params["step_factor"]),
     )
-    _log(f"observed orders: L-W {ds.attrs['lw_orders']}, BSR {ds.attrs['bsr_orders']}")
+    _log("observed orders: " + ", ".join(f"{k}: {v}" for k, v in ds.attrs.items() if "orders" in k))
     _write(ds, out, params, stage="runs", wall_time_s=time.time() - t0)
 
 
@@ -184,6 +183,8 @@ def ensemble_cmd(params, kind, out, inputs):
 def _theorem1_note(cmap, dist, conv, units, relax=None):
     """Plain-text reading of the chaos map against Theorem 1, and the continuum distances."""
     import numpy as np
+
+    from .study import continuum_note
 
     A, T = cmap["a"].values, cmap["T"].values
     ch = cmap["chaotic"].values
@@ -295,25 +296,7 @@ def _theorem1_note(cmap, dist, conv, units, relax=None):
             )
         lines.append(txt)
     lines.append("")
-    lines.append("## Continuum models against the discrete column (Fig. 2 problem)")
-    lines.append("")
-    u = units["fig2_length"]
-    lines.append(
-        f"- long-wave (Eq. 35, regularized): RMS distance {dist['rms_abs_longwave']:.3g} {u} "
-        f"in positions, {dist['rms_disp_longwave']:.3g} {u} in displacements from rest "
-        f"(particle diameter {2 * dist['r']:.3g} {u})."
-    )
-    lines.append(
-        f"- BSR (Eq. 45 as printed): RMS distance {dist['rms_abs_bsr']:.3g} {u}; its force is "
-        f"a downward body force at rest, the column collapses onto the floor at "
-        f"t = {dist['bsr_collapse_time']:.3g} {units['fig2_time']}."
-    )
-    lines.append(
-        f"- convergence (successive halvings, h/dz up to {conv.attrs['lw_finest']}): L-W "
-        f"orders {conv.attrs['lw_orders']}, BSR orders {conv.attrs['bsr_orders']} "
-        "(design order 2 on manufactured solutions; the floor's velocity jumps and the "
-        "BSR shocks lower it here)."
-    )
+    lines.extend(continuum_note(dist, conv, units))
     return "\n".join(lines) + "\n"
 
 
@@ -333,7 +316,7 @@ def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_
 
     from ..analysis.summary import summary_row, write_summary
     from ..io import read_dataset, write_text
-    from .study import relaxation_fit
+    from .study import continuum_rows, relaxation_fit
 
     ens = read_dataset(relax_path)
     cmap = read_dataset(chaos_path)
@@ -385,18 +368,7 @@ def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_
         "1",
         n=int(cmap["chaotic"].size),
     )
-    u2 = units["fig2_length"]
-    for key in ("rms_abs_longwave", "rms_disp_longwave", "rms_abs_bsr", "rms_disp_bsr"):
-        row(f"continuum_{key}", float(comp.attrs[key]), u2, n=int(comp.sizes["time"]))
-    row("bsr_collapse_time", float(comp.attrs["bsr_collapse_time"]), units["fig2_time"])
-    for key in ("lw", "bsr"):
-        orders = [float(x) for x in str(conv.attrs[f"{key}_orders"]).split()]
-        row(
-            f"{key}_observed_order_finest",
-            orders[-1] if orders else np.nan,
-            "1",
-            n=int(conv.attrs[f"{key}_finest"]),
-        )
+    rows.extend(continuum_rows(comp, conv, units["fig2_length"]))
     # the column's own file: rewritten whole (merge=False), so a dropped grid point leaves
     write_summary(rows, out_csv, merge=False)
     _log(f"wrote {out_csv} ({len(rows)} rows)")
@@ -415,7 +387,7 @@ def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_
         attrs={f"relaxation_{k}": float(v[0]) for k, v in fit.items()},
     )
     _write(fds, out_nc, params, stage="fits")
-    note = _theorem1_note(cmap, comp.attrs, conv, units, fit)
+    note = _theorem1_note(cmap, comp, conv, units, fit)
     write_text(note, out_note)
     click.echo(note)
 
@@ -444,16 +416,14 @@ def figures_cmd(params, traj, cont_path, relax_path, chaos_path, conv_path, outd
         F.fig1_trajectories([read_dataset(p) for p in traj], units["fig2_length"]),
         out / "fig1_trajectories",
     )
-    made += F.save(
-        F.fig2_continuum(read_dataset(cont_path), units["fig2_length"]), out / "fig2_continuum"
-    )
+    made += F.save(F.fig2_continuum(read_dataset(cont_path)), out / "fig2_continuum")
     made += F.save(
         F.fig3_density_relaxation(ens, relaxation_fit(ens, 200), f"kg/{units['length']}"),
         out / "fig3_density_relaxation",
     )
     made += F.save(F.fig4_chaos_map(cmap, units["length"], units["time"]), out / "fig4_chaos_map")
     made += F.save(
-        F.fig5_continuum_convergence(read_dataset(conv_path), units["fig2_length"]),
+        F.fig5_continuum_convergence(read_dataset(conv_path)),
         out / "fig5_continuum_convergence",
     )
     made += F.save(F.fig6_lyapunov_estimates(cmap), out / "fig6_lyapunov_estimates")

@@ -35,20 +35,11 @@ FIGURES = (
 
 def check(cfg: Mapping) -> None:
     """Cross-key checks of a ``column`` section before any job runs (ConfigError names
-    the key): the BSR cell must divide the particle diameter h = 2r, and each refinement
-    of the convergence study must be a multiple of the one before, so that the coarse
-    nodes lie on every finer grid."""
+    the key): each refinement of the convergence study must be a multiple of the one
+    before, so that the coarse nodes lie on every finer grid."""
     from ..errors import ConfigError
 
     cont = cfg.get("continuum", {})
-    phys = cont.get("physics", {})
-    if "r" in phys and "bsr_dz" in cont:
-        ratio = 2.0 * float(phys["r"]) / float(cont["bsr_dz"])
-        if abs(ratio - round(ratio)) > 1e-9 * max(1.0, ratio):
-            raise ConfigError(
-                f"config key 'column.continuum.bsr_dz' = {cont['bsr_dz']} does not divide the "
-                f"particle diameter h = 2r = {2.0 * float(phys['r'])}"
-            )
     conv = cont.get("convergence", {})
     for key in ("lw_refinements", "bsr_refinements"):
         ks = [int(k) for k in conv.get(key, [])]
@@ -135,7 +126,7 @@ def continuum_params(cfg: Mapping, with_convergence: bool = False) -> dict:
     c = cfg["continuum"]
     p = {
         "physics": c["physics"],
-        "viscosity": c.get("viscosity", "dissipative"),
+        "sigma_width": c.get("sigma_width", 0.01),
         "step_factor": step_factor(cfg),
     }
     if with_convergence:
@@ -147,7 +138,7 @@ def continuum_params(cfg: Mapping, with_convergence: bool = False) -> dict:
             **c.get("convergence", {}),
         }
     else:
-        defaults = {"n_taps": 4, "lw_dz": 0.25, "bsr_dz": 0.25, "record_dt": 0.01}
+        defaults = {"n_taps": 4, "lw_refinement": 16, "bsr_refinement": 4, "record_dt": 0.01}
         p.update({k: c.get(k, v) for k, v in defaults.items()})
     return p
 

@@ -744,9 +744,141 @@ def continuum_convergence(
     return xr.Dataset(
         data,
         coords={
-            "model": ("model", list(CONTINUUM_MODELS), {"long_name": "continuum model"}),
-            "top": ("top", list(TOP_TREATMENTS), {"long_name": "top boundary treatment"}),
+            "model": (
+                "model",
+                list(CONTINUUM_MODELS),
+                {"units": "1", "long_name": "continuum model"},
+            ),
+            "top": (
+                "top",
+                list(TOP_TREATMENTS),
+                {"units": "1", "long_name": "top boundary treatment"},
+            ),
             "level": ("level", np.arange(n_k), {"units": "1", "long_name": "refinement level"}),
         },
         attrs=attrs,
     )
+
+
+def _finest(conv: xr.Dataset, var: str, model: str, top: str):
+    """Value of ``var`` at the finest refinement run for (model, top), and that h/dz."""
+    ks = conv["refinement"].sel(model=model).values
+    last = int(np.max(np.where(ks > 0)[0]))
+    return float(conv[var].sel(model=model, top=top).values[last]), int(ks[last])
+
+
+def finest_orders(conv: xr.Dataset, model: str, top: str) -> list[float]:
+    """Observed orders of one model and top, coarsest pair first."""
+    return [float(x) for x in str(conv.attrs[f"orders_{model}_{top}"]).split()]
+
+
+def continuum_rows(comp: xr.Dataset, conv: xr.Dataset, length_unit: str) -> list[dict]:
+    """Summary rows of the continuum comparison (docs/results.md, "Column").
+
+    Per model and top treatment, at the finest refinement: RMS distances to the discrete
+    column in units of h (positions, displacements from rest, displacements relative to
+    the discrete column's RMS displacement) and the observed order of the finest pair;
+    the collapse time of BSR as printed (units sqrt(m/K)); and what the printed Eq. (35)
+    implies for the same column in cgs and in SI (its linear wave speed, units h sqrt(K/m));
+    ``length_unit`` is the unit of length of the Fig. 2 column's config.
+    """
+    from ..analysis.summary import summary_row
+
+    rows = []
+    for model in CONTINUUM_MODELS:
+        for top in TOP_TREATMENTS:
+            tag = f"[model={model},top={top}]"
+            for var, unit in (
+                ("rms_positions", "h"),
+                ("rms_displacements", "h"),
+                ("relative_displacements", "1"),
+            ):
+                v, k = _finest(conv, var, model, top)
+                rows.append(summary_row("column", f"continuum_{var}{tag}", v, unit))
+            o = finest_orders(conv, model, top)
+            rows.append(
+                summary_row(
+                    "column", f"continuum_observed_order_finest{tag}", o[-1] if o else np.nan, "1"
+                )
+            )
+        rows.append(summary_row("column", f"continuum_finest_refinement[model={model}]", k, "h/dz"))
+    for top in TOP_TREATMENTS:
+        rows.append(
+            summary_row(
+                "column",
+                f"bsr_collapse_time[top={top}]",
+                float(comp.attrs[f"bsr_collapse_time_{top}"]),
+                "sqrt(m/K)",
+            )
+        )
+    speeds = printed_longwave_speeds(float(comp.attrs["length_scale"]), length_unit)
+    for system, speed in speeds.items():
+        rows.append(
+            summary_row("column", f"printed_eq35_wave_speed[units={system}]", speed, "h sqrt(K/m)")
+        )
+    return rows
+
+
+def printed_longwave_speeds(h: float, length_unit: str) -> dict:
+    """sqrt(C(1)) of the printed Eq. (35) for a column of spacing h given in cgs and in SI.
+
+    C(1) = A₊/3 − hB/3 + 2rαh² with α = 1/h: 2.5/3 + 1/3 + h² in the unit of length used,
+    a speed in units of h sqrt(K/m), in which the chain's own long-wave speed is 1.
+    ``length_unit`` ("cm" or "m") is the unit h is given in.
+    """
+    to_cm = {"cm": 1.0, "m": 100.0}
+    if length_unit not in to_cm:
+        raise ValueError(f"length unit must be cm or m, got {length_unit!r}")
+    h_cm = h * to_cm[length_unit]
+    out = {}
+    for system, hh in (("cgs", h_cm), ("SI", h_cm / 100.0)):
+        p = ColumnParams(N=1, m=1.0, r=hh / 2, g=0.0, K=1.0, e=0.0, a=0.0, omega=1.0, T=1.0)
+        out[system] = math.sqrt(cont.longwave_coefficients(p).C1)
+    return out
+
+
+def continuum_note(comp: xr.Dataset, conv: xr.Dataset, units: Mapping) -> list[str]:
+    """Lines of the column note on the continuum models against the discrete column."""
+    lines = ["## Continuum models against the discrete column (Fig. 2 problem)", ""]
+    sc_t = float(comp.attrs["time_scale"])
+    lines.append(
+        f"Chain units: h = {comp.attrs['length_scale']:.4g} {units['fig2_length']}, "
+        f"sqrt(m/K) = {sc_t:.4g} {units['fig2_time']}; tap {comp.attrs['tap_duration']:.4g} "
+        f"(= {comp.attrs['tap_duration'] * sc_t:.3g} {units['fig2_time']}) of every period "
+        f"{comp.attrs['period']:.4g}, amplitude {comp.attrs['tap_amplitude']:.3g} h, "
+        f"G = mg/(Kh) = {comp.attrs['G']:.4g}. Distances at the finest grid, in h; "
+        "'relative' divides the displacement distance by the discrete column's RMS "
+        "displacement."
+    )
+    lines.append("")
+    for model in CONTINUUM_MODELS:
+        parts = []
+        for top in TOP_TREATMENTS:
+            pos, k = _finest(conv, "rms_positions", model, top)
+            disp, _ = _finest(conv, "rms_displacements", model, top)
+            rel, _ = _finest(conv, "relative_displacements", model, top)
+            o = finest_orders(conv, model, top)
+            parts.append(
+                f"{top} top: positions {pos:.3g}, displacements {disp:.3g} (relative "
+                f"{rel:.3g}), observed orders {' '.join(f'{x:.2f}' for x in o)} up to h/{k}"
+            )
+        lines.append(f"- {MODEL_NAMES[model]}: " + "; ".join(parts) + ".")
+    rel_h, _ = _finest(conv, "relative_displacements", "longwave", "hybrid")
+    rel_f, _ = _finest(conv, "relative_displacements", "longwave", "free")
+    lines.append(
+        f"- Imposed by the hybrid top: the long-wave distance grows from {rel_h:.3g} to "
+        f"{rel_f:.3g} of the discrete motion when the top is left free."
+    )
+    for top in TOP_TREATMENTS:
+        ct = float(comp.attrs[f"bsr_collapse_time_{top}"])
+        lines.append(
+            f"- BSR as printed, {top} top: collapses onto the floor at t = {ct:.3g} "
+            f"sqrt(m/K) = {ct * sc_t:.3g} {units['fig2_time']}."
+        )
+    speeds = printed_longwave_speeds(float(comp.attrs["length_scale"]), units["fig2_length"])
+    lines.append(
+        "- Eq. (35) as printed for this column: linear wave speed "
+        + ", ".join(f"{v:.3g} h sqrt(K/m) in {k}" for k, v in speeds.items())
+        + " (the chain's: 1)."
+    )
+    return lines

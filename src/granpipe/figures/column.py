@@ -63,39 +63,37 @@ def fig1_trajectories(runs: list[xr.Dataset], unit: str = "cm", time_unit: str =
     return fig
 
 
-def fig2_continuum(ds: xr.Dataset, unit: str = "cm", time_unit: str = "s"):
-    """Discrete y_i(t) beside the L-W y(z_i, t) and BSR tracers, with the L-W field."""
-    fig, axes = plt.subplots(2, 2, figsize=(12, 8))
-    t = ds["time"].values
+def fig2_continuum(ds: xr.Dataset):
+    """Discrete y_i(t) beside the continuum models with the hybrid and the free top.
+
+    Chain units: heights in h = 2r, time in taps (t/T); the L-W solution surface is the
+    hybrid run's displacement from rest.
+    """
+    fig, axes = plt.subplots(2, 3, figsize=(15, 8), sharex=True)
+    T = float(ds.attrs["period"])
+    t = ds["time"].values / T
     n = ds.sizes["particle"]
     cmap = plt.get_cmap("viridis")
-    panels = (
-        ("y_discrete", "discrete (Eq. 19)", None),
-        (
-            "y_longwave_particles",
-            "long-wave (Eq. 35, regularized)",
-            (ds.attrs["rms_abs_longwave"], ds.attrs["rms_disp_longwave"]),
-        ),
-        (
-            "y_bsr_particles",
-            "BSR (Eq. 45 as printed)",
-            (ds.attrs["rms_abs_bsr"], ds.attrs["rms_disp_bsr"]),
-        ),
-    )
-    for ax, (var, title, dist) in zip(axes.flat[:3], panels, strict=True):
+    panels = [("y_discrete", "discrete (Eq. 24)", None)]
+    for model, name in (("longwave", "long-wave (derived)"), ("bsr", "BSR (Eq. 45 as printed)")):
+        for top in ("hybrid", "free"):
+            panels.append((f"y_{model}_{top}", f"{name}, {top} top", f"{model}_{top}"))
+    for ax, (var, title, key) in zip(axes.flat[:5], panels, strict=True):
         for i in range(n):
             ax.plot(t, ds[var].values[:, i], lw=0.8, color=cmap(i / max(n - 1, 1)))
         ax.plot(t, ds["floor"].values, color="0.3", lw=0.8, ls="--")
-        if dist is not None:
+        if key is not None:
             title += (
-                f"\nRMS distance to discrete: {dist[0]:.3g} {unit} (positions), "
-                f"{dist[1]:.3g} {unit} (displacements)"
+                f"\nRMS distance {ds.attrs[f'rms_positions_{key}']:.3g} h (positions), "
+                f"{ds.attrs[f'rms_displacements_{key}']:.3g} h (displacements, "
+                f"{ds.attrs[f'relative_displacements_{key}']:.2g} of the discrete)"
             )
         ax.set_title(title, fontsize=9)
-        ax.set_xlabel(f"t [{time_unit}]")
-        ax.set_ylabel(f"height [{unit}]")
-    ax = axes.flat[3]
-    y = ds["y_longwave"].values
+        ax.set_ylabel("height / h")
+    for ax in axes[1]:
+        ax.set_xlabel("t / T (taps)")
+    ax = axes.flat[5]
+    y = ds["y_longwave_field"].values
     disp = y - y[0]
     lim = np.nanmax(np.abs(disp)) or 1.0
     im = ax.pcolormesh(
@@ -106,14 +104,13 @@ def fig2_continuum(ds: xr.Dataset, unit: str = "cm", time_unit: str = "s"):
         norm=TwoSlopeNorm(0.0, -lim, lim),
         shading="auto",
     )
-    fig.colorbar(im, ax=ax, label=f"y(z, t) − y(z, 0) [{unit}]")
-    ax.set_xlabel(f"t [{time_unit}]")
-    ax.set_ylabel(f"label z [{unit}]")
-    ax.set_title("L-W solution surface (displacement from rest)", fontsize=9)
-    ct = ds.attrs.get("bsr_collapse_time", np.nan)
+    fig.colorbar(im, ax=ax, label="y(z, t) − y(z, 0)  [h]")
+    ax.set_ylabel("label z / h")
+    ax.set_title("long-wave, hybrid top: solution surface (displacement from rest)", fontsize=9)
     fig.suptitle(
-        f"Fig. 2: continuum models beside the discrete column (N = {n}); "
-        f"BSR column collapses onto the floor at t = {ct:.3g} {time_unit}"
+        f"Fig. 2: continuum models beside the discrete column (N = {n}; tap "
+        f"{ds.attrs['tap_duration'] / T:.2f} T, amplitude {ds.attrs['tap_amplitude']:.2f} h; "
+        f"L-W at h/{ds.attrs['lw_refinement']}, BSR at h/{ds.attrs['bsr_refinement']})"
     )
     fig.tight_layout()
     return fig
@@ -210,25 +207,38 @@ def fig4_chaos_map(cmap_ds: xr.Dataset, length_unit: str = "m", time_unit: str =
     return fig
 
 
-def fig5_continuum_convergence(conv: xr.Dataset, unit: str = "cm"):
-    """Successive-difference errors of both solvers against h/Δz, with slope guides."""
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
-    for var, coord, label, c in (
-        ("lw_error", "lw_refinement", f"L-W, orders {conv.attrs['lw_orders']}", "C0"),
-        ("bsr_error", "bsr_refinement", f"BSR, orders {conv.attrs['bsr_orders']}", "C1"),
-    ):
-        k = conv[coord].values
-        e = conv[var].values
-        ax.loglog(k, e, "o-", color=c, label=label)
-        if k.size:
-            for order, ls in ((1, ":"), (2, "--")):
-                ax.loglog(k, e[0] * (k / k[0]) ** (-order), ls, color=c, lw=0.7)
+def fig5_continuum_convergence(conv: xr.Dataset):
+    """Per model and top: successive differences and distance to the discrete column
+    against h/Δz (chain units), with slope guides of order 1 and 2."""
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
+    styles = {"hybrid": "-", "free": ":"}
+    for i, model in enumerate(conv["model"].values):
+        ks = conv["refinement"].values[i]
+        ok = ks > 0
+        for top in conv["top"].values:
+            e = conv["error"].sel(model=model, top=top).values[ok]
+            k = ks[ok][: e.size]
+            m = np.isfinite(e)
+            orders = conv.attrs[f"orders_{model}_{top}"]
+            c = f"C{i}"
+            ax.loglog(k[m], e[m], "o" + styles[top], color=c,
+                      label=f"{model}, {top} top (orders {orders})")  # fmt: skip
+            if m.any() and top == "hybrid":
+                k0, e0 = k[m][0], e[m][0]
+                for order, ls in ((1, ":"), (2, "--")):
+                    ax.loglog(k[m], e0 * (k[m] / k0) ** (-order), ls, color="0.6", lw=0.7)
+            rel = conv["relative_displacements"].sel(model=model, top=top).values[ok]
+            ax2.semilogx(ks[ok], rel, "o" + styles[top], color=c, label=f"{model}, {top} top")
     ax.set_xlabel("h / Δz")
-    ax.set_ylabel(f"max |u(Δz) − u(Δz/2)| [{unit}]")
-    ax.set_title(
-        "Continuum solvers under refinement (Fig. 2 problem); guides: order 1, 2", fontsize=9
-    )
-    ax.legend(fontsize=8)
+    ax.set_ylabel("max |y(h/k) − y(h/2k)|  [h]")
+    ax.set_title("successive differences; guides: order 1, 2", fontsize=9)
+    ax.legend(fontsize=7)
+    ax2.set_xlabel("h / Δz")
+    ax2.set_ylabel("RMS displacement distance / RMS discrete displacement")
+    ax2.set_yscale("log")
+    ax2.set_title("distance to the discrete column under refinement", fontsize=9)
+    ax2.legend(fontsize=7)
+    fig.suptitle("Continuum models under refinement (Fig. 2 problem, chain units)")
     fig.tight_layout()
     return fig
 
