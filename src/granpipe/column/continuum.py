@@ -1,62 +1,67 @@
-"""Continuum models of the tapped column: long-wave PDE (Eq. 35) and BSR integro-PDE (Eq. 45).
+"""Continuum models of the tapped column, in chain units: long-wave PDE and BSR (Eq. 45).
 
-Both use the paper's *hybrid* treatment (Section 4): the free top boundary φ(t) is taken
-from the discrete solution (top surface y_N + r of the column, Eqs. 19–27), the elastic
-force is zero for material above it, and the moving bottom carries no gravity (it is a
-prescribed Dirichlet boundary, y(0, t) = y0(t), u(0, t) = ẏ0(t), Eqs. 39, 46).
+Chain units (docs/column.md, "Chain units"): lengths in the spacing h = 2r of touching
+particles, time in sqrt(m/K), mass in m. A column then has four numbers, N, e,
+G = mg/(Kh) and the tap (a/h, ω sqrt(m/K), T sqrt(K/m)); :func:`dimensionless` maps any
+column onto them, and every solver here takes a column in chain units, so the same column
+given in cgs or in SI yields the same solution to round-off.
 
-Long-wave model (L-W). Lagrangian label z ∈ [0, S], S = 2Nr (Eq. 29); y(z, t) is the
-height of the material point labelled z. Eq. (35) with σ = tanh(α·), α = 1/h, χ(0) = 1/2:
+Long-wave model (L-W), derived from the middle equation of Eq. (24). With the label z of a
+material point (particle i has label i − 1/2, the floor 0, the top surface N) and
+y(z, t) its height, the force across the contact between labels z ∓ 1/2 is
+Φ = [1 − e σ(W)] C χ(C), C = 1 − (y(z + 1/2) − y(z − 1/2)), W its rate. Taylor expansion
+of the central differences in h (Eqs. 32–34) gives, to O(h²),
 
-    y_tt = −g + (K h²/m) [ (A₊/3) y_zz − (h/3)(B y_z + e α A₊ y_tz) y_zz
-                           + h² ( (A₋/36) y_zzzz + 2 r α y_z² y_zz + e α B y_z y_zz y_tz
-                                  + (1/6) e α A₊ y_zz y_tzz ) ]
+    y_tt = −G − ∂_z Φ − (1/24) ∂_z³ Φ,  C = 1 − y_z − y_zzz/24,  W = y_tz + y_tzzz/24,
 
-with A₊ = 2.5, A₋ = 6.5, B = −1/h (Eq. 38 evaluated; the text's A₋ = 13.5 contradicts it,
-and Eq. 37 flips the overall sign — docs/column.md). We use (35)'s sign.
+and on every region where σ and χ are constant (Φ linear in C) the O(h²) terms add up to
+(1/12) ∂_z² of the leading force: y_tt = −G − ∂_z Φ₀ + (1/12) ∂_z²(−∂_z Φ₀),
+Φ₀ = [1 − e σ(y_tz)] (1 − y_z)⁺. Linearised, ω² = k² − k⁴/12: the chain's
+4 sin²(k/2) to O(k⁴), with sound speed 1 (h sqrt(K/m)). We solve its standard well-posed
+form (the "improved Boussinesq" substitution, exact to this order)
 
-*Why a regularization.* Linearized about the undeformed column (y_z = 1), Eq. (35) gives
-ω² = c²k²(1 − γ h² k²) with c² = (K h²/m) C(1), C(p) = A₊/3 − (h B/3) p + 2 r α h² p², and
-γ = A₋/(36 C(1)): every wavenumber k > 1/(h√γ) grows exponentially (the "bad Boussinesq"
-sign of the long-wave expansion), so (35) is ill-posed and no grid finer than
-Δz ≈ 2h√γ can converge. We use the standard consistent regularization of the dispersive
-term (the "improved Boussinesq" substitution y_zzzz ≈ y_ttzz/c², exact to the order of
-the expansion): (1 − γ h² ∂_zz) y_tt = (rest of Eq. 35). Its dispersion relation
-ω² = c²k²/(1 + γh²k²) is bounded, so explicit RK4 is stable for Δt < 2.8 h√γ/c
-independently of Δz, and the spatial discretization (second-order central differences)
-converges at second order under refinement. The paper's grid (Δt = Δz = 0.01,
-explicit central differences on Eq. 37) violates the CFL bound c Δt/Δz ≤ 1 by a factor
-c ≈ 6.4e2 cm/s × 1 = 640 for its own parameters.
+    (1 − (1/12) ∂_z²) y_tt = −G − ∂_z { [1 − e σ(y_tz)] (1 − y_z)⁺ },
 
-Boundary conditions: y(0, t) = y0(t), y_t(0, t) = ẏ0(t); stress-free top y_z(S, t) = 1
-(ghost node), Neumann for the regularizing operator. Density from Eq. (41),
-ρ_t + (y_t ρ)_z = 0, ρ(z, 0) = m/(2r) (Eq. 42), finite volumes with minmod MUSCL.
+with σ(W) = tanh(W/w_σ) (``sigma_width``) and the exact step χ. Where it differs from
+Eqs. (35)–(38): the paper expands the smoothed σ_α, χ_α about zero argument with α = 1/h,
+so αh = 1 terms enter at every order and the truncation is not an expansion in h; its
+σ'(0) multiplies a velocity in y_tz but a length in r σ'(0), so Eq. (35) is not
+dimensionally consistent (2rσ'(0) y_z² y_zz carries an extra length², e σ'(0) y_tz an
+extra 1/velocity), and its linear coefficient C(1) = A₊/3 − hB/3 + 2rαh² (χ(0) = 1/2: a
+half-open contact) is 5.17 in cgs and 1.17 in SI for the Fig. 2 column against 1 here; its
+dispersive coefficient A₋/36 = 0.18 (relative 0.154 in SI) against 1/12 here; its y_z², y_tz
+nonlinearities come from the smoothing and are absent here (the only nonlinearities are the
+hysteresis 1 ∓ e and the opening of contacts). :func:`longwave_coefficients` keeps the
+printed coefficients to report that.
 
-BSR model. Eulerian height z ∈ [0, Z]; velocity u(z, t) (Eq. 45):
+Discretization: nodes z_j = jΔz, forces on half nodes (conservative), second-order
+differences; the regularizing operator bounds the wave frequency by sqrt(12(1 + e)) and
+the viscous rate of the smooth σ by 12 e C_max/w_σ independently of Δz, so explicit RK4
+steps follow those bounds and end on the floor's switches (Eq. 3). Bottom: y(0, t) = y0(t)
+(Eq. 39; the chain's floor contact is a half-length spring of the same K, so the chain
+sits lower by G N/2 at rest than the continuum, a boundary effect of O(h)). Top: free
+(Φ = 0 above the top node, half a cell of mass) or the paper's hybrid treatment
+(Section 4): the top node follows the discrete column's top surface y_N + r, shifted by
+the difference of rest heights. Density: in labels, ρ = (m/h)/y_z exactly (Eq. 41 in
+Lagrangian form).
+
+BSR model (Eq. 45 as printed), Eulerian height z, velocity u(z, t):
 
     u_t + u u_z = −g − (K/m) ∫_{−h}^{h} Θ(y, z) [1 − e σ(u(z + y) − u(z))] (2r − |y|) dy,
     Θ(y, z) = exp(−((z + y) − b)² / (2 c²)) / (c √(2π)),   b = 7h, c = 3h,
 
-(Eq. 44 normalizes with b where c is meant — docs/column.md), u(z, 0) = 0, u(0, t) = ẏ0(t). Finite
-volumes: Godunov flux for Burgers with minmod MUSCL, SSP-RK3, CFL 0.4; the kernel integral
-by the trapezoid rule on the grid (h/Δz must be an integer), exact σ (σ(0) = 0 sits at the
-node y = 0, where the integrand jumps, so the rule stays second order). Density from
-Eq. (48). Material positions follow dX/dt = u(X, t) (Lagrangian tracers, clamped at the
-floor), to compare with the discrete particles.
-
-*A second regularization.* The term (1/6) e α A₊ h² y_zz y_tzz of Eq. (35) is a viscosity
-proportional to y_zz: negative wherever y_zz < 0, which makes the model ill-posed there
-too (growth ∝ |y_zz|, unbounded under refinement). By default we keep only its
-dissipative part, max(y_zz, 0) (option ``viscosity``); with the printed form the figure-1
-problem blows up at Δz = h/64. The time step follows the fastest rate of the linearized,
-regularized equation at every step, because Q (the y_zz coefficient) and the viscosity grow
-like 1/Δz² next to the velocity jumps of the floor (Eq. 3).
+(Eq. 44 normalizes with b where c is meant — docs/column.md), u(z, 0) = 0, u(0, t) = ẏ0(t).
+Finite volumes: Godunov flux for Burgers with minmod MUSCL, SSP-RK3, CFL 0.4; the kernel
+integral by the trapezoid rule on the grid (h/Δz must be an integer), exact σ. Density from
+Eq. (48). Material positions follow dX/dt = u(X, t) (tracers clamped at the floor), to
+compare with the discrete particles. Hybrid top: no elastic force above φ(t), the discrete
+top surface shifted to start at S = 2Nr; free top: φ = ∞.
 
 *What Eq. (45) as printed implies.* The kernel is even in y and positive, so the integral
 is a downward body force independent of the compression: (K/m) h² Θ ≈ 5 g at z = b for
 the figure-1 parameters, on top of gravity. Nothing in (45) can hold a column up; the
 material falls onto the floor within a fraction of a second. We integrate it faithfully
-until all tracers rest on the floor, and report it (the comparison number says so).
+until all tracers rest on the floor, and report it.
 """
 
 from __future__ import annotations

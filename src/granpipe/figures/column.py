@@ -84,9 +84,9 @@ def fig2_continuum(ds: xr.Dataset):
         ax.plot(t, ds["floor"].values, color="0.3", lw=0.8, ls="--")
         if key is not None:
             title += (
-                f"\nRMS distance {ds.attrs[f'rms_positions_{key}']:.3g} h (positions), "
-                f"{ds.attrs[f'rms_displacements_{key}']:.3g} h (displacements, "
-                f"{ds.attrs[f'relative_displacements_{key}']:.2g} of the discrete)"
+                f"\nRMS distance: positions {ds.attrs[f'rms_positions_{key}']:.3g} h,"
+                f"\ndisplacements {ds.attrs[f'rms_displacements_{key}']:.3g} h "
+                f"({ds.attrs[f'relative_displacements_{key}']:.2g} of the discrete)"
             )
         ax.set_title(title, fontsize=9)
         ax.set_ylabel("height / h")
@@ -229,6 +229,9 @@ def fig5_continuum_convergence(conv: xr.Dataset):
                     ax.loglog(k[m], e0 * (k[m] / k0) ** (-order), ls, color="0.6", lw=0.7)
             rel = conv["relative_displacements"].sel(model=model, top=top).values[ok]
             ax2.semilogx(ks[ok], rel, "o" + styles[top], color=c, label=f"{model}, {top} top")
+    for a in (ax, ax2):
+        a.set_xscale("log", base=2)
+        a.xaxis.set_major_formatter(plt.matplotlib.ticker.ScalarFormatter())
     ax.set_xlabel("h / Δz")
     ax.set_ylabel("max |y(h/k) − y(h/2k)|  [h]")
     ax.set_title("successive differences; guides: order 1, 2", fontsize=9)
