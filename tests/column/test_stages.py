@@ -78,6 +78,7 @@ def test_stage_pipeline(tmp_path):
         "n_taps": 1,
         "lw_refinement": 2,
         "bsr_refinement": 2,
+        "bsr_derived_refinement": 2,
         "record_dt": 0.01,
         "sigma_width": 0.01,
         "step_factor": 0.2,
@@ -86,6 +87,7 @@ def test_stage_pipeline(tmp_path):
             "lw_refinements": [2, 4, 8],
             "bsr_refinements": [2, 4, 8],
             "bsr_t_end": 0.05,
+            "bsr_derived_refinements": [2, 4, 8],
         },
     }
     comp, conv = tmp_path / "runs" / "continuum.nc", tmp_path / "runs" / "convergence.nc"
@@ -177,7 +179,7 @@ def test_stage_pipeline(tmp_path):
         *(
             f"continuum_{v}[model={m},top={t}]"
             for v in ("rms_positions", "relative_displacements", "observed_order_finest")
-            for m in ("longwave", "bsr")
+            for m in ("longwave", "bsr", "bsr_derived")
             for t in ("hybrid", "free")
         ),
     }

@@ -135,6 +135,7 @@ def continuum_cmd(params, out):
         float(params["record_dt"]),
         float(params["sigma_width"]),
         float(params["step_factor"]),
+        int(params["bsr_derived_refinement"]),
     )
     _log(f"distances to the discrete column [h] (positions, displacements, relative): {dist}")
     _write(ds, out, params, stage="runs", wall_time_s=time.time() - t0)
@@ -157,6 +158,7 @@ def convergence_cmd(params, out):
         float(c["bsr_t_end"]),
         float(params["sigma_width"]),
         float(params["step_factor"]),
+        c["bsr_derived_refinements"],
     )
     _log("observed orders: " + ", ".join(f"{k}: {v}" for k, v in ds.attrs.items() if "orders" in k))
     _write(ds, out, params, stage="runs", wall_time_s=time.time() - t0)

@@ -1,4 +1,4 @@
-"""Continuum models of the tapped column, in chain units: long-wave PDE and BSR (Eq. 45).
+"""Continuum models of the tapped column in chain units: long wave, BSR (Eq. 45), derived BSR.
 
 Chain units (docs/column.md, "Chain units"): lengths in the spacing h = 2r of touching
 particles, time in sqrt(m/K), mass in m. A column then has four numbers, N, e,
@@ -62,6 +62,11 @@ is a downward body force independent of the compression: (K/m) h² Θ ≈ 5 g at
 the figure-1 parameters, on top of gravity. Nothing in (45) can hold a column up; the
 material falls onto the floor within a fraction of a second. We integrate it faithfully
 until all tracers rest on the floor, and report it.
+
+Derived BSR (:func:`solve_bsr_derived`): the force law of Eq. (24) on the abutting
+neighbours, the material one particle mass above and below, a kernel odd in y acting on
+the compression; it has the chain's rest state. Formulation and numerics: docs/column.md,
+"BSR derived from the force law".
 """
 
 from __future__ import annotations
@@ -752,4 +757,233 @@ def solve_bsr(
         "rho": out_r[:i_rec],
         "tracers": out_x[:i_rec],
         "collapse_time": collapse_time,
+    }
+
+
+# --------------------------------------------------------------------------- derived BSR
+@njit
+def _ext_interp(f, z, dz, g):
+    """Linear interpolation at height z of f on cells of width dz whose first ``g`` cells lie
+    below z = 0 (ghost cells); constant beyond the ends."""
+    n = f.size
+    x = z / dz - 0.5 + g
+    if x <= 0.0:
+        return f[0]
+    i = int(x)
+    if i >= n - 1:
+        return f[n - 1]
+    w = x - i
+    return (1.0 - w) * f[i] + w * f[i + 1]
+
+
+@njit
+def _bsr_derived_force(u_ext, rho_ext, dz, g, e, w_sigma, G, phi, out):
+    """Source of the derived BSR model at the n interior cell centres, chain units.
+
+    u_t + u u_z = −G − Φ₊ + Φ₋ with Φ± = [1 − e σ(±(u(z ± Δ±) − u(z)))] (1 − Δ±)⁺: the force
+    law of Eq. (24) between the material at z and its abutting neighbours, the material one
+    particle mass away: ∫_z^{z+Δ₊} ρ = ∫_{z−Δ₋}^{z} ρ = m (ρ the linear density, piecewise
+    constant on the cells; m = 1). There is no neighbour above where less than one mass is
+    left above z (the top layer), and none with a spacing beyond h (open contact). Below
+    the floor the ``g`` ghost cells carry the floor's velocity and a density continued
+    linearly from the column, so the floor holds the bottom layer as the chain's floor
+    contact does. No elastic force on or from material above the free top φ.
+    """
+    n = out.size
+    ne = rho_ext.size
+    M = np.empty(ne + 1)  # mass below each face, face 0 at z = −g dz
+    M[0] = 0.0
+    for j in range(ne):
+        M[j + 1] = M[j] + max(rho_ext[j], 0.0) * dz
+    for i in range(n):
+        zi = (i + 0.5) * dz
+        ie = i + g
+        out[i] = -G
+        if zi > phi or rho_ext[ie] <= 1e-9:
+            continue
+        Mi = 0.5 * (M[ie] + M[ie + 1])
+        # neighbour above: the height where the mass below reaches Mi + 1
+        target = Mi + 1.0
+        if target < M[ne]:
+            j = ie
+            while M[j + 1] < target:
+                j += 1
+            za = (j - g) * dz + dz * (target - M[j]) / (M[j + 1] - M[j])
+            dp = za - zi
+            if dp < 1.0 and za <= phi:
+                ua = _ext_interp(u_ext, za, dz, g)
+                out[i] -= (1.0 - e * math.tanh((ua - u_ext[ie]) / w_sigma)) * (1.0 - dp)
+        target = Mi - 1.0
+        if target > 0.0:
+            j = ie
+            while M[j] > target:
+                j -= 1
+            zb = (j - g) * dz + dz * (target - M[j]) / (M[j + 1] - M[j])
+            dm = zi - zb
+            if dm < 1.0:
+                ub = _ext_interp(u_ext, zb, dz, g)
+                out[i] += (1.0 - e * math.tanh((u_ext[ie] - ub) / w_sigma)) * (1.0 - dm)
+
+
+def rest_density(q: ColumnParams, z_cell: np.ndarray, dz: float) -> np.ndarray:
+    """Cell averages of the chain's rest density (mass m per length h), chain units.
+
+    The rest map of the labels, y(z) = ∫(1 − G(N − z)) dz (:func:`longwave_equilibrium`),
+    inverted on the cell faces: ρ_i = (label above − label below)/Δz, the mass in the cell.
+    """
+    zf = np.linspace(0.0, float(q.N), 1280 * q.N + 1)
+    yf = longwave_equilibrium(q, zf)
+    faces = np.concatenate([z_cell - 0.5 * dz, [z_cell[-1] + 0.5 * dz]])
+    lab = np.clip(np.interp(faces, yf, zf), 0.0, float(q.N))
+    return np.diff(lab) / dz
+
+
+def _material_velocity(mom, rho, thr=1e-6):
+    """u = (ρu)/ρ where there is material; empty cells take the velocity of the nearest
+    material cell below them."""
+    has = rho > thr
+    u = np.where(has, mom / np.where(has, rho, 1.0), 0.0)
+    if not has.any():
+        return u
+    idx = np.where(has, np.arange(u.size), 0)
+    np.maximum.accumulate(idx, out=idx)
+    return u[idx]
+
+
+def solve_bsr_derived(
+    q: ColumnParams,
+    t_end: float,
+    *,
+    dz: float,
+    height: float | None = None,
+    cfl: float = 0.4,
+    top=None,
+    tracers=None,
+    record_dt: float | None = None,
+    sigma_width: float = 0.01,
+    hyper: float = 0.02,
+) -> dict:
+    """Integrate the derived BSR model in chain units (docs/column.md, "BSR derived from
+    the force law").
+
+    Eulerian finite volumes in the frame of the floor (height z − y0(t), velocity u − ẏ0),
+    where the floor is a fixed wall and the tap an extra body force −ÿ0 (plus the jumps of
+    ẏ0 at the start and end of each tap, Eq. 3, applied to the whole column): Eq. (46)'s
+    u(0, t) = ẏ0(t) at a fixed z = 0 would not let the floor lift the column. Linear density
+    ρ and momentum ρu: ρ_t + (ρu)_z = 0, (ρu)_t + (ρu²)_z = ρ f with f the source of
+    :func:`_bsr_derived_force` (this conservative form of u_t + u u_z = f keeps empty
+    cells from carrying momentum into the column); minmod MUSCL upwind fluxes with
+    mass-weighted face velocities, SSP-RK3, and a hyperviscosity −``hyper`` Δz³ ∂⁴u that
+    damps the grid-scale modes the nonlocal force cannot see (it vanishes like Δz³ for
+    resolved waves). Starts from the chain's rest state (:func:`rest_density`, u = 0).
+    Outputs are back in the lab frame.
+
+    Parameters
+    ----------
+    q : ColumnParams in chain units; t_end, dz, height (default N + 4) likewise
+    top : (t, y_top, v_top), optional: the discrete top surface (hybrid treatment): no
+        elastic force above φ(t), the continuum's rest top shifted like the discrete one
+    tracers : initial heights of material points, dX/dt = u(X, t) (default: the
+        discrete rest positions of the N particles)
+    sigma_width : w_σ of σ(W) = tanh(W/w_σ) [units of h sqrt(K/m)]
+
+    Returns
+    -------
+    dict as :func:`solve_bsr` (``collapse_time`` is NaN: this model holds the column up).
+    """
+    from .params import equilibrium_positions
+
+    _require_dimensionless(q, "solve_bsr_derived")
+    Z = q.N + 4.0 if height is None else float(height)
+    n = int(round(Z / dz))
+    g = int(math.ceil(2.0 / dz))  # ghost cells: two spacings below the floor
+    zc = (np.arange(n) + 0.5) * dz
+    rho = rest_density(q, zc, dz)
+    mom = np.zeros(n)
+    phi = _TopBoundary(top, float(longwave_equilibrium(q, np.array([0.0, q.N]))[-1]))
+    X = np.array(equilibrium_positions(q) if tracers is None else tracers, dtype=np.float64)
+    record_dt = record_dt or 0.01 * q.T
+    out_t = np.arange(int(math.floor(t_end / record_dt + 1e-9)) + 1) * record_dt
+    out_u = np.full((out_t.size, n), np.nan)
+    out_r = np.full((out_t.size, n), np.nan)
+    out_x = np.full((out_t.size, X.size), np.nan)
+    src = np.empty(n)
+    drho = np.empty(n)
+    dmom = np.empty(n)
+    vface = np.empty(n + 1)
+    rho_ext = np.empty(n + g)
+    u_ext = np.empty(n + g)
+    steps = np.arange(g, 0, -1, dtype=np.float64)  # ghost j sits j cells below cell 0
+
+    def rate(t, rr, mm, seg):
+        yb, _, ab = floor_state(q, t, seg[3], seg[2])
+        uu = _material_velocity(mm, rr)
+        rho_ext[g:] = rr
+        rho_ext[:g] = rr[0] + steps * (rr[0] - rr[1])
+        u_ext[g:] = uu
+        u_ext[:g] = 0.0
+        _bsr_derived_force(u_ext, rho_ext, dz, g, q.e, sigma_width, q.g + ab, phi(t) - yb, src)
+        w = rr[1:] + rr[:-1]
+        vface[1:-1] = np.where(
+            w > 0, (rr[1:] * uu[1:] + rr[:-1] * uu[:-1]) / np.where(w > 0, w, 1.0), 0.0
+        )
+        vface[0] = 0.0
+        vface[-1] = max(uu[-1], 0.0)
+        _transport_rate(rr, vface, dz, 0.0, True, drho)
+        _transport_rate(mm, vface, dz, 0.0, True, dmom)
+        # hyperviscosity −ν₄ ∂⁴u, ν₄ = c₄ Δz³: damps the grid-scale modes the nonlocal force
+        # cannot see (rate c₄ π⁴/Δz at k = π/Δz) and vanishes like Δz³k⁴ for resolved waves
+        up = np.concatenate([[0.0, 0.0], uu, [uu[-1], uu[-1]]])
+        d4 = (up[4:] - 4 * up[3:-1] + 6 * up[2:-2] - 4 * up[1:-3] + up[:-4]) / dz**4
+        return drho.copy(), dmom + rr * (src - hyper * dz**3 * d4), uu
+
+    def u_at(x, uu):
+        return np.interp(x, np.concatenate([[0.0], zc]), np.concatenate([[0.0], uu]))
+
+    i_rec = 0
+    v_before = 0.0
+    for seg in _segments(q, t_end):
+        t = seg[0]
+        y0, v0, _ = floor_state(q, t, seg[3], seg[2])
+        mom = mom - rho * (v0 - v_before)  # the floor's velocity jump (Eq. 3)
+        while True:
+            while i_rec < out_t.size and out_t[i_rec] <= t + 1e-12 * max(1.0, t):
+                y0, v0, _ = floor_state(q, t, seg[3], seg[2])
+                out_u[i_rec] = _material_velocity(mom, rho) + v0
+                out_r[i_rec], out_x[i_rec] = np.interp(zc - y0, zc, rho, left=0.0), X + y0
+                i_rec += 1
+            if seg[1] - t <= 1e-12 * max(1.0, t):
+                v_before = floor_state(q, seg[1], seg[3], seg[2])[1]
+                break
+            stop = seg[1]
+            if i_rec < out_t.size and out_t[i_rec] < stop:
+                stop = out_t[i_rec]
+            while stop - t > 1e-12 * max(1.0, t):
+                umax = float(np.max(np.abs(_material_velocity(mom, rho)))) + 1.0
+                # sound speed 1 and the viscosity e/w_σ of the smooth σ (chain units)
+                hs = min(cfl * dz / umax, cfl / (q.e / sigma_width + 1.0), stop - t)
+                k1r, k1m, uu0 = rate(t, rho, mom, seg)
+                x1 = X + hs * u_at(X, uu0)
+                r1, m1 = rho + hs * k1r, mom + hs * k1m
+                k2r, k2m, uu1 = rate(t + hs, r1, m1, seg)
+                x2 = 0.75 * X + 0.25 * (x1 + hs * u_at(x1, uu1))
+                r2 = 0.75 * rho + 0.25 * (r1 + hs * k2r)
+                m2 = 0.75 * mom + 0.25 * (m1 + hs * k2m)
+                k3r, k3m, uu2 = rate(t + hs / 2, r2, m2, seg)
+                X = X / 3 + 2 / 3 * (x2 + hs * u_at(x2, uu2))
+                rho = rho / 3 + 2 / 3 * (r2 + hs * k3r)
+                mom = mom / 3 + 2 / 3 * (m2 + hs * k3m)
+                t += hs
+                X = np.maximum(X, 0.0)
+                if not (np.all(np.isfinite(mom)) and np.all(np.isfinite(X))):
+                    from ..errors import SimulationError
+
+                    raise SimulationError("column derived BSR: non-finite solution", time=t, dz=dz)
+    return {
+        "z": zc,
+        "t": out_t[:i_rec],
+        "u": out_u[:i_rec],
+        "rho": out_r[:i_rec],
+        "tracers": out_x[:i_rec],
+        "collapse_time": np.nan,
     }

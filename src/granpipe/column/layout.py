@@ -41,7 +41,7 @@ def check(cfg: Mapping) -> None:
 
     cont = cfg.get("continuum", {})
     conv = cont.get("convergence", {})
-    for key in ("lw_refinements", "bsr_refinements"):
+    for key in ("lw_refinements", "bsr_refinements", "bsr_derived_refinements"):
         ks = [int(k) for k in conv.get(key, [])]
         for a, b in zip(ks[:-1], ks[1:], strict=False):
             if b <= a or b % a:
@@ -135,10 +135,17 @@ def continuum_params(cfg: Mapping, with_convergence: bool = False) -> dict:
             "lw_refinements": [2, 4, 8, 16, 32, 64],
             "bsr_refinements": [2, 4, 8, 16, 32],
             "bsr_t_end": 0.1,
+            "bsr_derived_refinements": [2, 4, 8, 16, 32],
             **c.get("convergence", {}),
         }
     else:
-        defaults = {"n_taps": 4, "lw_refinement": 16, "bsr_refinement": 4, "record_dt": 0.01}
+        defaults = {
+            "n_taps": 4,
+            "lw_refinement": 16,
+            "bsr_refinement": 4,
+            "bsr_derived_refinement": 8,
+            "record_dt": 0.01,
+        }
         p.update({k: c.get(k, v) for k, v in defaults.items()})
     return p
 

@@ -502,13 +502,18 @@ def chaos_map(points: Iterable[xr.Dataset], confidence: float = 0.95):
 
 
 # --------------------------------------------------------------------------- 4. continuum
-CONTINUUM_MODELS = ("longwave", "bsr")
-"""The continuum models compared: the derived long-wave model and BSR as printed (Eq. 45)."""
+CONTINUUM_MODELS = ("longwave", "bsr", "bsr_derived")
+"""The continuum models compared: the derived long-wave model, BSR as printed (Eq. 45) and
+the BSR derived from the force law of Eq. (24) (docs/column.md)."""
 
 TOP_TREATMENTS = ("hybrid", "free")
 """``hybrid``: the continuum's top follows the discrete top (Section 4); ``free``: Φ = 0."""
 
-MODEL_NAMES = {"longwave": "long-wave (derived)", "bsr": "BSR (Eq. 45 as printed)"}
+MODEL_NAMES = {
+    "longwave": "long-wave (derived)",
+    "bsr": "BSR (Eq. 45 as printed)",
+    "bsr_derived": "BSR (derived)",
+}
 
 
 def _discrete_record(q, n_taps, record_dt, step_factor):
@@ -538,6 +543,11 @@ def _solve_continuum(model, q, t_end, refinement, top, record_dt, sigma_width):
         y = np.array([np.interp(zi, sol["z"], row) for row in sol["y"]])
     elif model == "bsr":
         sol = cont.solve_bsr(q, t_end, dz=dz, top=top, record_dt=record_dt)
+        y = sol["tracers"]
+    elif model == "bsr_derived":
+        sol = cont.solve_bsr_derived(
+            q, t_end, dz=dz, top=top, record_dt=record_dt, sigma_width=sigma_width
+        )
         y = sol["tracers"]
     else:
         raise ValueError(f"unknown continuum model {model!r}; known: {CONTINUUM_MODELS}")
@@ -574,8 +584,9 @@ def continuum_comparison(
     record_dt: float,
     sigma_width: float = 0.01,
     step_factor: float = 0.1,
+    bsr_derived_refinement: int = 8,
 ):
-    """Discrete column, L-W and BSR with the hybrid and the free top over ``n_taps`` taps.
+    """Discrete column and the continuum models with the hybrid and the free top.
 
     Everything is computed in chain units (h, sqrt(m/K), m: docs/column.md); the
     physical column ``phys`` only sets the dimensionless numbers. ``record_dt`` is in the
@@ -590,7 +601,12 @@ def continuum_comparison(
     top = _discrete_top(q, disc)
     t_end = n_taps * q.T
     runs = {}
-    for model, k in (("longwave", lw_refinement), ("bsr", bsr_refinement)):
+    refinements = {
+        "longwave": lw_refinement,
+        "bsr": bsr_refinement,
+        "bsr_derived": bsr_derived_refinement,
+    }
+    for model, k in refinements.items():
         for treat in TOP_TREATMENTS:
             runs[model, treat] = _solve_continuum(
                 model, q, t_end, k, top if treat == "hybrid" else None, rec, sigma_width
@@ -623,6 +639,12 @@ def continuum_comparison(
         lw["y"],
         {**lab, "long_name": "long-wave (derived), hybrid top: height y(z, t) / h"},
     )
+    bd = runs["bsr_derived", "hybrid"][2]
+    data["rho_bsr_derived"] = (
+        ("time", "height"),
+        bd["rho"][: t.size],
+        {"units": "m/h", "long_name": "BSR (derived), hybrid top: linear density"},
+    )
     attrs = {
         "length_scale": sc.length,
         "time_scale": sc.time,
@@ -632,6 +654,7 @@ def continuum_comparison(
         "period": q.T,
         "lw_refinement": int(lw_refinement),
         "bsr_refinement": int(bsr_refinement),
+        "bsr_derived_refinement": int(bsr_derived_refinement),
         "sigma_width": float(sigma_width),
         "N": q.N,
     }
@@ -651,6 +674,7 @@ def continuum_comparison(
                 {"units": "1", "long_name": "particle index"},
             ),
             "label": ("label", lw["z"], {**lab, "long_name": "Lagrangian label z / h"}),
+            "height": ("height", bd["z"], {**lab, "long_name": "Eulerian height z / h"}),
         },
         attrs=attrs,
     )
@@ -665,24 +689,27 @@ def continuum_convergence(
     bsr_t_end: float,
     sigma_width: float = 0.01,
     step_factor: float = 0.1,
+    bsr_derived_refinements: Iterable[int] = (2, 4, 8, 16),
 ):
-    """Both models and both tops under grid refinement, in chain units.
+    """Every model and both tops under grid refinement, in chain units.
 
     For each model, top treatment and refinement k (Δz = h/k): the RMS distances to the
     discrete column (:func:`_distance`) and the successive difference
     e_k = max over records and particles of |y(h/k) − y(h/2k)|, with observed orders
-    log2(e_k / e_2k). ``t_end`` (L-W) and ``bsr_t_end`` (BSR) are in the units of
-    ``phys``; BSR as printed stops when it has collapsed.
+    log2(e_k / e_2k). ``t_end`` (L-W, derived BSR) and ``bsr_t_end`` (BSR as printed) are
+    in the units of ``phys``; BSR as printed stops when it has collapsed.
     """
     p = physics(phys)
     q = cont.dimensionless(p)
     sc = cont.chain_scales(p)
     fine = q.T / 1000
     ends = {"longwave": t_end / sc.time, "bsr": bsr_t_end / sc.time}
+    ends["bsr_derived"] = ends["longwave"]
     disc = _discrete_record(q, max(1, math.ceil(max(ends.values()) / q.T)), fine, step_factor)
     top = _discrete_top(q, disc)
     ks = {"longwave": sorted(int(k) for k in lw_refinements)}
     ks["bsr"] = sorted(int(k) for k in bsr_refinements)
+    ks["bsr_derived"] = sorted(int(k) for k in bsr_derived_refinements)
     n_k = max(len(v) for v in ks.values())
     shape = (len(CONTINUUM_MODELS), len(TOP_TREATMENTS), n_k)
     fields = {
@@ -863,12 +890,13 @@ def continuum_note(comp: xr.Dataset, conv: xr.Dataset, units: Mapping) -> list[s
                 f"{rel:.3g}), observed orders {' '.join(f'{x:.2f}' for x in o)} up to h/{k}"
             )
         lines.append(f"- {MODEL_NAMES[model]}: " + "; ".join(parts) + ".")
-    rel_h, _ = _finest(conv, "relative_displacements", "longwave", "hybrid")
-    rel_f, _ = _finest(conv, "relative_displacements", "longwave", "free")
-    lines.append(
-        f"- Imposed by the hybrid top: the long-wave distance grows from {rel_h:.3g} to "
-        f"{rel_f:.3g} of the discrete motion when the top is left free."
-    )
+    for model in ("longwave", "bsr_derived"):
+        rel_h, _ = _finest(conv, "relative_displacements", model, "hybrid")
+        rel_f, _ = _finest(conv, "relative_displacements", model, "free")
+        lines.append(
+            f"- Imposed by the hybrid top ({MODEL_NAMES[model]}): the distance is "
+            f"{rel_h:.3g} of the discrete motion with it and {rel_f:.3g} with a free top."
+        )
     for top in TOP_TREATMENTS:
         ct = float(comp.attrs[f"bsr_collapse_time_{top}"])
         lines.append(

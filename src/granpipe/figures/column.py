@@ -69,16 +69,21 @@ def fig2_continuum(ds: xr.Dataset):
     Chain units: heights in h = 2r, time in taps (t/T); the L-W solution surface is the
     hybrid run's displacement from rest.
     """
-    fig, axes = plt.subplots(2, 3, figsize=(15, 8), sharex=True)
+    fig, axes = plt.subplots(3, 3, figsize=(15, 12), sharex=True)
     T = float(ds.attrs["period"])
     t = ds["time"].values / T
     n = ds.sizes["particle"]
     cmap = plt.get_cmap("viridis")
     panels = [("y_discrete", "discrete (Eq. 24)", None)]
-    for model, name in (("longwave", "long-wave (derived)"), ("bsr", "BSR (Eq. 45 as printed)")):
+    for model, name in (
+        ("longwave", "long-wave (derived)"),
+        ("bsr", "BSR (Eq. 45 as printed)"),
+        ("bsr_derived", "BSR (derived)"),
+    ):
         for top in ("hybrid", "free"):
             panels.append((f"y_{model}_{top}", f"{name}, {top} top", f"{model}_{top}"))
-    for ax, (var, title, key) in zip(axes.flat[:5], panels, strict=True):
+    slots = [axes[0, 0], axes[0, 1], axes[0, 2], axes[1, 0], axes[1, 1], axes[2, 0], axes[2, 1]]
+    for ax, (var, title, key) in zip(slots, panels, strict=True):
         for i in range(n):
             ax.plot(t, ds[var].values[:, i], lw=0.8, color=cmap(i / max(n - 1, 1)))
         ax.plot(t, ds["floor"].values, color="0.3", lw=0.8, ls="--")
@@ -90,9 +95,9 @@ def fig2_continuum(ds: xr.Dataset):
             )
         ax.set_title(title, fontsize=9)
         ax.set_ylabel("height / h")
-    for ax in axes[1]:
+    for ax in axes[2]:
         ax.set_xlabel("t / T (taps)")
-    ax = axes.flat[5]
+    ax = axes[1, 2]
     y = ds["y_longwave_field"].values
     disp = y - y[0]
     lim = np.nanmax(np.abs(disp)) or 1.0
@@ -107,10 +112,17 @@ def fig2_continuum(ds: xr.Dataset):
     fig.colorbar(im, ax=ax, label="y(z, t) − y(z, 0)  [h]")
     ax.set_ylabel("label z / h")
     ax.set_title("long-wave, hybrid top: solution surface (displacement from rest)", fontsize=9)
+    ax = axes[2, 2]
+    rho = ds["rho_bsr_derived"].values
+    im = ax.pcolormesh(t, ds["height"].values, rho.T, cmap="viridis", shading="auto")
+    fig.colorbar(im, ax=ax, label="linear density [m/h]")
+    ax.set_ylabel("height z / h")
+    ax.set_title("BSR (derived), hybrid top: density", fontsize=9)
     fig.suptitle(
         f"Fig. 2: continuum models beside the discrete column (N = {n}; tap "
         f"{ds.attrs['tap_duration'] / T:.2f} T, amplitude {ds.attrs['tap_amplitude']:.2f} h; "
-        f"L-W at h/{ds.attrs['lw_refinement']}, BSR at h/{ds.attrs['bsr_refinement']})"
+        f"L-W at h/{ds.attrs['lw_refinement']}, BSR at h/{ds.attrs['bsr_refinement']}, "
+        f"derived BSR at h/{ds.attrs['bsr_derived_refinement']})"
     )
     fig.tight_layout()
     return fig
