@@ -110,3 +110,43 @@ def test_column_at_rest_each_tap_has_period_one_at_round_off():
     assert m["period_counts"].sel(here).values.tolist() == [0, 2, 0, 0]
     assert m["period_counts"].sel(there).values.tolist() == [2, 0, 0, 0]
     assert np.isnan(float(m["period_fraction"].sel(a=0.0001, T=0.3)))  # no point there
+
+
+def _point(a, T, periods, lam):
+    """A chaos point as lyapunov_point writes it, with given periods and exponents."""
+    import xarray as xr
+
+    n = len(periods)
+    return xr.Dataset(
+        {
+            "lambda_tap": ("replica", np.array(lam, float)),
+            "lambda_twin": ("replica", np.array(lam, float)),
+            "lambda_plain": ("replica", np.array(lam, float)),
+            "failed": ("replica", np.zeros(n, dtype=np.int64)),
+            "return_period": ("replica", np.array(periods, dtype=np.int64)),
+            "rest_fraction": ("replica", np.ones(n)),
+        },
+        attrs={"a": a, "T": T, "return_max_period": 4, "return_taps": 8},
+    )
+
+
+def test_note_reads_the_periods_honestly():
+    """Period 1 up to chaos → 'no'; a period 2 before chaos → 'in part'; undecided named."""
+    from granpipe.column.cli import _return_periods_reading
+
+    units = {"length": "m", "time": "s"}
+    neg, pos = [-0.5, -0.6, -0.55], [1.0, 1.2, 1.1]
+    flat = chaos_map([_point(1e-4, 0.3, [1, 1, 1], neg), _point(1e-3, 0.3, [0, 0, 0], pos)])
+    lines, verdict = _return_periods_reading(flat, units)
+    assert verdict == "no" and "period 1 at every regular amplitude" in lines[-1]
+    pts = [
+        _point(1e-4, 0.3, [1, 1, 1], neg),
+        _point(3e-4, 0.3, [-2, -2, -2], neg),
+        _point(5e-4, 0.3, [2, 2, 1], neg),
+        _point(1e-3, 0.3, [0, 0, 0], pos),
+    ]
+    lines, verdict = _return_periods_reading(chaos_map(pts), units)
+    assert verdict.startswith("in part") and "longest period 2" in verdict
+    text = "\n".join(lines)
+    assert "a = 0.0003: undecided (3/3)" in text and "a = 0.0005: 2 (2/3)" in text
+    assert "Undecided replicas" in text

@@ -192,6 +192,8 @@ def _period_label(cmap, i, j):
     n = int(counts.sum()) + und
     if n == 0:
         return "n/a"
+    if not counts.sum():
+        return f"undecided ({und}/{n})"
     mode = int(cmap["period_mode"].values[i, j])
     label = f"{mode if mode else 'none'} ({int(counts[mode])}/{n})"
     return label + (f", {und} undecided" if und else "")
@@ -204,7 +206,8 @@ def _return_periods_reading(cmap, units):
     the first chaotic one (a point counts as periodic when most of its replicas have a
     period). Returns (lines, verdict) with verdict "yes" (periods above 1 before chaos
     and growing with a), "in part" (a period above 1 before chaos at some T, not growing
-    further) or "no" (period 1 up to chaos everywhere).
+    further; the longest period and those T added) or "no" (period 1 up to chaos
+    everywhere).
     """
     import numpy as np
 
@@ -222,7 +225,7 @@ def _return_periods_reading(cmap, units):
         "replicas, '(k/n)' replicas with it, 'none': no period up to the maximum, "
         "'undecided': a shorter lag nearly repeats too, the orbit is still converging):",
     ]
-    above_one, growing, aperiodic_regular = [], [], []
+    above_one, growing, aperiodic_regular, undecided = [], [], [], []
     for j, t in enumerate(T):
         first = np.where(ch[:, j] == 1)[0]
         stop = int(first[0]) if first.size else A.size
@@ -240,9 +243,12 @@ def _return_periods_reading(cmap, units):
             q = [x for x in before if x > 0]
             if len(set(q)) > 2 and all(b >= a for a, b in zip(q[:-1], q[1:], strict=True)):
                 growing.append(t)
+        counts = cmap["period_counts"].values[:, j]
         aperiodic_regular += [
-            (A[i], t) for i in range(A.size) if ch[i, j] == 0 and frac[i, j] == 0.0
+            (A[i], t) for i in range(A.size) if ch[i, j] == 0 and frac[i, j] == 0.0 and counts[i, 0]
         ]
+        if "period_undecided" in cmap:
+            undecided += [(A[i], t) for i in range(A.size) if cmap["period_undecided"].values[i, j]]
     longest = int(np.max(cmap["period_max"].values)) if cmap["period_max"].size else 0
     chaotic_periodic = int(np.sum((ch == 1) & (frac > 0)))
     if growing:
@@ -253,7 +259,8 @@ def _return_periods_reading(cmap, units):
             + f"; the longest detected period is {longest} (searched up to {p_max})."
         )
     elif above_one:
-        verdict = "in part"
+        where = ", ".join(f"{t:g}" for t in above_one)
+        verdict = f"in part (longest period {longest}, before chaos at T = {where} only)"
         txt = (
             "a period above 1 appears before chaos at T = "
             + ", ".join(f"{t:g}" for t in above_one)
@@ -273,6 +280,13 @@ def _return_periods_reading(cmap, units):
             "Regular (negative exponent) but no period found at "
             + ", ".join(f"(a = {a:g}, T = {t:g})" for a, t in aperiodic_regular)
             + ": still converging in the window, or a period above the maximum."
+        )
+    if undecided:
+        lines.append(
+            "Undecided replicas (a shorter lag within 100 x the tolerance: still converging, "
+            "or next to the bifurcation of the cycle) at "
+            + ", ".join(f"(a = {a:g}, T = {t:g})" for a, t in undecided)
+            + "."
         )
     if chaotic_periodic:
         lines.append(f"{chaotic_periodic} chaotic points have a replica with a period.")
@@ -474,12 +488,14 @@ def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_
                 n=int(cmap["n"].values[i, j]),
             )
     if "period_mode" in cmap:
-        n_per = cmap["period_counts"].values.sum(axis=-1)
+        decided = cmap["period_counts"].values.sum(axis=-1)
+        n_per = decided + (cmap["period_undecided"].values if "period_undecided" in cmap else 0)
         for i, a in enumerate(A):
             for j, t in enumerate(T):
+                # the most common period (0: none up to the maximum; -2: all undecided)
                 row(
                     f"return_period[a={a:g},T={t:g}]",
-                    int(cmap["period_mode"].values[i, j]),
+                    int(cmap["period_mode"].values[i, j]) if decided[i, j] else -2,
                     "taps",
                     n=int(n_per[i, j]),
                 )
