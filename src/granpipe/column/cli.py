@@ -3,11 +3,12 @@
 Stage map (outputs under ``results/<scale>/column/``):
 
 * runs:     ``trajectories`` (Fig. 1 columns), ``relaxation`` (one batch of replicas),
-            ``chaos`` (one (a, T) point of the map), ``continuum`` (discrete vs L-W vs BSR),
+            ``chaos`` (one (a, T) point of the map: Lyapunov exponents and return-map
+            periods), ``continuum`` (discrete vs L-W vs BSR),
             ``convergence`` (continuum solvers under refinement)
 * ensemble: ``ensemble --kind relaxation|chaos`` (batches → means, spreads, intervals)
-* fits:     ``fits`` (relaxation fit, chaos thresholds, continuum distances → summary.csv,
-            fits netCDF and the Theorem 1 note)
+* fits:     ``fits`` (relaxation fit, chaos thresholds, return-map periods, continuum
+            distances → summary.csv, fits netCDF and the Theorem 1 note)
 * figures:  ``figures`` (fig1–fig6, PNG and PDF)
 
 The column has no separate init stage: its start is the closed-form equilibrium (Eq. 27),
