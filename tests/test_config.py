@@ -157,12 +157,20 @@ def _quick(repo):
         (("box", "fits", "N_l"), 33, "box.fits.N_l"),
         (("column", "continuum", "sigma_width"), 0.0, "column.continuum.sigma_width"),
         (("column", "continuum", "convergence", "lw_refinements"), [2, 3, 8], "lw_refinements"),
+        (("column", "chaos", "return_taps"), 4, "column.chaos.return_taps"),
+        (("column", "chaos", "return_taps"), 1, "column.chaos.return_taps"),
+        (("column", "chaos", "return_max_period"), 2, "column.chaos.return_max_period"),
+        (("column", "chaos", "return_max_period"), 0, "column.chaos.return_max_period"),
+        (("column", "chaos", "return_tolerance"), 0.0, "column.chaos.return_tolerance"),
+        (("column", "chaos", "return_tolerance"), "tight", "column.chaos.return_tolerance"),
     ],
 )
 def test_refusals_before_any_job_name_the_key(repo, path, value, match):
     """NaN and inf anywhere, fit windows outside the record or reversed, min > max, the
     snapshot batch beyond the batches, a plan too large to build, a grid selection not in
-    the grid, a smooth sign of zero width, refinements that are not nested."""
+    the grid, a smooth sign of zero width, refinements that are not nested, a return-map
+    window longer than the measured taps or shorter than two longest periods, a period
+    below 1, a tolerance that is not a positive number."""
     cfg = _quick(repo)
     _set(cfg, path, value)
     with pytest.raises(ConfigError, match=match.replace(".", r"\.")):

@@ -68,6 +68,9 @@ def test_stage_pipeline(tmp_path):
         "twin_epsilon": 1e-9,
         "plain": True,
         "step_factor": 0.2,
+        "return_max_period": 1,
+        "return_taps": 2,
+        "return_tolerance": 1e-6,
     }
     for a in (0.0002, 0.005):
         path = tmp_path / "runs" / f"chaos_{a}.nc"
@@ -183,13 +186,18 @@ def test_stage_pipeline(tmp_path):
             for t in ("hybrid", "free")
         ),
     }
+    rows |= {
+        "return_period[a=0.0002,T=0.3]",
+        "return_periodic_fraction[a=0.005,T=0.3]",
+        "return_period_longest[T=0.3]",
+    }
     assert rows <= set(df.quantity)
     val = df.set_index("quantity")["value"]
     # the printed Eq. (35) changes its wave speed with the unit system; the chain's is 1
     assert val["printed_eq35_wave_speed[units=cgs]"] == pytest.approx(np.sqrt(31 / 6), rel=1e-9)
     assert val["printed_eq35_wave_speed[units=SI]"] == pytest.approx(np.sqrt(7 / 6 + 4e-4))
     m = read_dataset(ens_c)
-    assert m.sizes == {"a": 2, "T": 1}
+    assert m.sizes == {"a": 2, "T": 1, "period": 2}  # periods 0 (none) and 1
     # replicas are reproducible from their seeds: the same batch gives the same numbers
     again = tmp_path / "again.nc"
     _run(["relaxation", "--params", j(rp), "--batch", "1", "--out", str(again)])
@@ -198,7 +206,7 @@ def test_stage_pipeline(tmp_path):
     )
     r = read_dataset(ens_r)
     assert int(r["count"].max()) == 4 and r.attrs["config_yaml"]
-    assert "Theorem 1" in note.read_text()
+    assert "Theorem 1 against the data: periods growing with a before chaos:" in note.read_text()
     for k in range(1, 7):
         assert list((tmp_path / "figures").glob(f"fig{k}_*.png"))
         assert list((tmp_path / "figures").glob(f"fig{k}_*.pdf"))

@@ -3,11 +3,12 @@
 Stage map (outputs under ``results/<scale>/column/``):
 
 * runs:     ``trajectories`` (Fig. 1 columns), ``relaxation`` (one batch of replicas),
-            ``chaos`` (one (a, T) point of the map), ``continuum`` (discrete vs L-W vs BSR),
+            ``chaos`` (one (a, T) point of the map: Lyapunov exponents and return-map
+            periods), ``continuum`` (discrete vs L-W vs BSR),
             ``convergence`` (continuum solvers under refinement)
 * ensemble: ``ensemble --kind relaxation|chaos`` (batches → means, spreads, intervals)
-* fits:     ``fits`` (relaxation fit, chaos thresholds, continuum distances → summary.csv,
-            fits netCDF and the Theorem 1 note)
+* fits:     ``fits`` (relaxation fit, chaos thresholds, return-map periods, continuum
+            distances → summary.csv, fits netCDF and the Theorem 1 note)
 * figures:  ``figures`` (fig1–fig6, PNG and PDF)
 
 The column has no separate init stage: its start is the closed-form equilibrium (Eq. 27),
@@ -90,7 +91,7 @@ def relaxation_cmd(params, batch, out):
 @click.option("--T", "period", required=True, type=float, help="Tap period T.")
 @click.option("--out", required=True, type=click.Path(dir_okay=False))
 def chaos_cmd(params, amplitude, period, out):
-    """One point of the chaos map: ensemble of largest Lyapunov exponents at (a, T)."""
+    """One point of the chaos map: largest Lyapunov exponents and return-map periods."""
     from .study import lyapunov_point
 
     t0 = time.time()
@@ -104,10 +105,14 @@ def chaos_cmd(params, amplitude, period, out):
         float(params["twin_epsilon"]),
         bool(params["plain"]),
         float(params["step_factor"]),
+        int(params.get("return_max_period", 6)),
+        int(params.get("return_taps", 12)),
+        float(params.get("return_tolerance", 1e-6)),
     )
     _log(
         f"a={amplitude:g} T={period:g}: lambda/tap = {ds['lambda_tap'].values.round(3).tolist()}"
         f" twin {ds['lambda_twin'].values.round(3).tolist()}"
+        f" return-map periods {ds['return_period'].values.tolist()}"
     )
     _write(
         ds,
@@ -182,6 +187,114 @@ def ensemble_cmd(params, kind, out, inputs):
     _write(ds, out, params, stage="ensemble", kind=kind)
 
 
+def _period_label(cmap, i, j):
+    """The return-map period of one chaos point as the note prints it."""
+    counts = cmap["period_counts"].values[i, j]
+    und = int(cmap["period_undecided"].values[i, j]) if "period_undecided" in cmap else 0
+    n = int(counts.sum()) + und
+    if n == 0:
+        return "n/a"
+    if not counts.sum():
+        return f"undecided ({und}/{n})"
+    mode = int(cmap["period_mode"].values[i, j])
+    label = f"{mode if mode else 'none'} ({int(counts[mode])}/{n})"
+    return label + (f", {und} undecided" if und else "")
+
+
+def _return_periods_reading(cmap, units):
+    """Lines of the note on Theorem 1's periodic orbits, and the verdict on that claim.
+
+    Per period T: the most common detected return-map period along the amplitudes up to
+    the first chaotic one (a point counts as periodic when most of its replicas have a
+    period). Returns (lines, verdict) with verdict "yes" (periods above 1 before chaos
+    and growing with a), "in part" (a period above 1 before chaos at some T, not growing
+    further; the longest period and those T added) or "no" (period 1 up to chaos
+    everywhere).
+    """
+    import numpy as np
+
+    A, T = cmap["a"].values, cmap["T"].values
+    ch = cmap["chaotic"].values
+    p_max = int(cmap.attrs.get("return_max_period", cmap.sizes.get("period", 1) - 1))
+    window = cmap.attrs.get("return_taps", "?")
+    tol = cmap.attrs.get("return_tolerance", float("nan"))
+    mode = cmap["period_mode"].values
+    frac = cmap["period_fraction"].values
+    lines = [
+        "",
+        f"Return map (states at the end of each of the last {window} measured taps, "
+        f"periods p <= {p_max}, scaled distance < {tol:g}; most common period over the "
+        "replicas, '(k/n)' replicas with it, 'none': no period up to the maximum, "
+        "'undecided': a shorter lag nearly repeats too, the orbit is still converging):",
+    ]
+    above_one, growing, aperiodic_regular, undecided = [], [], [], []
+    for j, t in enumerate(T):
+        first = np.where(ch[:, j] == 1)[0]
+        stop = int(first[0]) if first.size else A.size
+        seq = [_period_label(cmap, i, j) for i in range(A.size)]
+        lines.append(
+            f"- T = {t:g} {units['time']}: "
+            + ", ".join(
+                f"a = {a:g}: {lab}{' [chaos]' if ch[i, j] == 1 else ''}"
+                for i, (a, lab) in enumerate(zip(A, seq, strict=True))
+            )
+        )
+        before = [int(mode[i, j]) for i in range(stop) if frac[i, j] > 0.5]
+        if any(q > 1 for q in before):
+            above_one.append(t)
+            q = [x for x in before if x > 0]
+            if len(set(q)) > 2 and all(b >= a for a, b in zip(q[:-1], q[1:], strict=True)):
+                growing.append(t)
+        counts = cmap["period_counts"].values[:, j]
+        aperiodic_regular += [
+            (A[i], t) for i in range(A.size) if ch[i, j] == 0 and frac[i, j] == 0.0 and counts[i, 0]
+        ]
+        if "period_undecided" in cmap:
+            undecided += [(A[i], t) for i in range(A.size) if cmap["period_undecided"].values[i, j]]
+    longest = int(np.max(cmap["period_max"].values)) if cmap["period_max"].size else 0
+    chaotic_periodic = int(np.sum((ch == 1) & (frac > 0)))
+    if growing:
+        verdict = "yes"
+        txt = (
+            "periods grow with a before chaos at T = "
+            + ", ".join(f"{t:g}" for t in growing)
+            + f"; the longest detected period is {longest} (searched up to {p_max})."
+        )
+    elif above_one:
+        where = ", ".join(f"{t:g}" for t in above_one)
+        verdict = f"in part (longest period {longest}, before chaos at T = {where} only)"
+        txt = (
+            "a period above 1 appears before chaos at T = "
+            + ", ".join(f"{t:g}" for t in above_one)
+            + f" only, and does not grow further: the longest detected period is {longest} "
+            f"(searched up to {p_max}); elsewhere the return map has period 1 up to the "
+            "first chaotic amplitude."
+        )
+    else:
+        verdict = "no"
+        txt = (
+            "the return map has period 1 at every regular amplitude and no period up to "
+            f"{p_max} from the first chaotic amplitude on: no periods growing with a."
+        )
+    lines.append(f"Periodic orbits: {txt}")
+    if aperiodic_regular:
+        lines.append(
+            "Regular (negative exponent) but no period found at "
+            + ", ".join(f"(a = {a:g}, T = {t:g})" for a, t in aperiodic_regular)
+            + ": still converging in the window, or a period above the maximum."
+        )
+    if undecided:
+        lines.append(
+            "Undecided replicas (a shorter lag within 100 x the tolerance: still converging, "
+            "or next to the bifurcation of the cycle) at "
+            + ", ".join(f"(a = {a:g}, T = {t:g})" for a, t in undecided)
+            + "."
+        )
+    if chaotic_periodic:
+        lines.append(f"{chaotic_periodic} chaotic points have a replica with a period.")
+    return lines, verdict
+
+
 def _theorem1_note(cmap, dist, conv, units, relax=None):
     """Plain-text reading of the chaos map against Theorem 1, and the continuum distances."""
     import numpy as np
@@ -191,7 +304,10 @@ def _theorem1_note(cmap, dist, conv, units, relax=None):
     A, T = cmap["a"].values, cmap["T"].values
     ch = cmap["chaotic"].values
     lines = ["# Column study: what the numbers say", ""]
-    lines.append("## Theorem 1 (chaos for large tap amplitude a; chaos for small period T)")
+    lines.append(
+        "## Theorem 1 (periodic orbits of growing period, then chaos, as the tap amplitude "
+        "a grows; chaos for small period T)"
+    )
     lines.append("")
     per_T = []
     monotone = True
@@ -217,6 +333,7 @@ def _theorem1_note(cmap, dist, conv, units, relax=None):
     top_chaotic = int(np.sum(ch[-1, :] == 1))
     bottom_regular = int(np.sum(ch[0, :] == 0))
     lines.append("")
+    claim_a = "yes" if top_chaotic == T.size and bottom_regular > 0 else "no"
     if top_chaotic == T.size and bottom_regular > 0:
         verdict_a = (
             f"supports the amplitude part: the largest amplitude is chaotic at all {T.size} "
@@ -271,10 +388,22 @@ def _theorem1_note(cmap, dist, conv, units, relax=None):
             if parts
             else "does not show chaos appearing as T shrinks in the grid."
         )
+        claim_T = "in part" if emerge else "no"
     else:
         verdict_T = "cannot test the period part (one period only)."
+        claim_T = "not tested"
     lines.append(f"Period: the map {verdict_T}")
-    lines.append("The existence of periodic orbits of arbitrarily long period is not tested.")
+    claim_p = "not tested"
+    if "period_mode" in cmap:
+        plines, claim_p = _return_periods_reading(cmap, units)
+        lines.extend(plines)
+    else:
+        lines.append("The return-map periods were not measured.")
+    lines.append("")
+    lines.append(
+        f"Theorem 1 against the data: periods growing with a before chaos: {claim_p}; "
+        f"chaos at large a: {claim_a}; chaos appearing as T shrinks: {claim_T}."
+    )
     if relax is not None:
         v = relax["relaxed_density"]
         dch = relax["density_change"]
@@ -343,6 +472,31 @@ def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_
                 lo=cmap["lambda_low"].values[i, j],
                 hi=cmap["lambda_high"].values[i, j],
                 n=int(cmap["n"].values[i, j]),
+            )
+    if "period_mode" in cmap:
+        decided = cmap["period_counts"].values.sum(axis=-1)
+        n_per = decided + (cmap["period_undecided"].values if "period_undecided" in cmap else 0)
+        for i, a in enumerate(A):
+            for j, t in enumerate(T):
+                # the most common period (0: none up to the maximum; -2: all undecided)
+                row(
+                    f"return_period[a={a:g},T={t:g}]",
+                    int(cmap["period_mode"].values[i, j]) if decided[i, j] else -2,
+                    "taps",
+                    n=int(n_per[i, j]),
+                )
+                row(
+                    f"return_periodic_fraction[a={a:g},T={t:g}]",
+                    float(cmap["period_fraction"].values[i, j]),
+                    "1",
+                    n=int(n_per[i, j]),
+                )
+        for j, t in enumerate(T):
+            row(
+                f"return_period_longest[T={t:g}]",
+                int(cmap["period_max"].values[:, j].max()),
+                "taps",
+                n=int(n_per[:, j].sum()),
             )
     thresholds = np.full(T.size, np.nan)
     for j, t in enumerate(T):

@@ -902,15 +902,20 @@ def run_periods(
     rec_v,
     samp_fracs,
     samp_y,
+    samp_v,
+    samp_modes,
     log_growth,
     stats,
 ):
     """Evolve the column over taps k0 .. k0 + n_periods − 1 (t from k0 T to (k0+n) T).
 
     State arrays are updated in place. Records (if ``rec_y`` has rows) at times
-    rec_t0 + i rec_dt; samples of y at (k + f) T for f in ``samp_fracs`` into
-    ``samp_y[k − k0, f]``; with ``tangent``, the tangent vector (dy, dv) is renormalized
-    (norm sqrt(Σ (dy/sy)² + (dv/sv)²)) at the end of every period and
+    rec_t0 + i rec_dt; samples of y, v and the contact modes at (k + f) T for f in
+    ``samp_fracs`` into ``samp_y[k − k0, f]``, ``samp_v``, ``samp_modes`` (f = 1: the state
+    the next tap starts from, before its floor-velocity jump; a sample time equal to a
+    segment end adds no step, so sampling never changes the trajectory); with
+    ``tangent``, the tangent vector (dy, dv) is renormalized (norm
+    sqrt(Σ (dy/sy)² + (dv/sv)²)) at the end of every period and
     ``log_growth[k − k0]`` gets the log of its growth over that period.
 
     Returns
@@ -1015,6 +1020,8 @@ def run_periods(
                     if abs(t - ts) <= 1e-9 * h:
                         for i in range(n):
                             samp_y[kk, f, i] = y[i]
+                            samp_v[kk, f, i] = v[i]
+                            samp_modes[kk, f, i] = modes[i]
                 if tangent:
                     nrm = _tangent_norm(dy, dv, sy, sv)
                     if nrm > 1e100 or nrm < 1e-100:
@@ -1191,15 +1198,16 @@ def simulate(
     n_periods : int
     h : float [time], RK4 step (default :func:`default_step`)
     record_dt : float [time], optional; record y, v every ``record_dt``
-    sample_fracs : sequence of float in (0, 1]; sample y at (k + f)T
+    sample_fracs : sequence of float in (0, 1]; sample y, v and modes at (k + f)T
     tangent : bool; evolve the tangent vector (normalized at the end of every period)
     saltation : bool; apply saltation corrections at σ switches
 
     Returns
     -------
     dict with ``t`` (n_rec,), ``y``/``v`` (n_rec, N), ``samples`` (n_periods, n_frac, N)
-    [length], ``log_growth`` (n_periods,) (log of the tangent growth per period), ``stats``
-    (dict of counters).
+    [length] with ``samples_v`` [length/time] and ``sample_modes`` (int8, −1 if not
+    sampled) at the same times, ``log_growth`` (n_periods,) (log of the tangent growth per
+    period), ``stats`` (dict of counters).
     """
     h = default_step(p) if h is None else float(h)
     k0 = state.period
@@ -1212,6 +1220,8 @@ def simulate(
     rec_v = np.zeros((n_rec, p.N))
     fr = np.asarray(sample_fracs, dtype=np.float64)
     samp = np.full((n_periods, fr.size, p.N), np.nan)
+    samp_v = np.full((n_periods, fr.size, p.N), np.nan)
+    samp_modes = np.full((n_periods, fr.size, p.N), -1, dtype=np.int8)
     growth = np.full(n_periods, np.nan)
     stats = np.zeros(N_STATS, dtype=np.int64)
     sy, sv = tangent_scales(p)
@@ -1243,6 +1253,8 @@ def simulate(
         rec_v,
         fr,
         samp,
+        samp_v,
+        samp_modes,
         growth,
         stats,
     )
@@ -1254,6 +1266,8 @@ def simulate(
         "y": rec_y[:n_done],
         "v": rec_v[:n_done],
         "samples": samp,
+        "samples_v": samp_v,
+        "sample_modes": samp_modes,
         "log_growth": growth,
         "stats": dict(zip(STAT_NAMES, stats.tolist(), strict=True)),
     }

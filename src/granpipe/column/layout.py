@@ -36,8 +36,26 @@ FIGURES = (
 def check(cfg: Mapping) -> None:
     """Cross-key checks of a ``column`` section before any job runs (ConfigError names
     the key): each refinement of the convergence study must be a multiple of the one
-    before, so that the coarse nodes lie on every finer grid."""
+    before, so that the coarse nodes lie on every finer grid, and the return-map window of
+    the chaos points must fit in the measured taps and hold every phase of the longest
+    period twice."""
     from ..errors import ConfigError
+
+    chaos = cfg.get("chaos", {})
+    p_max = int(chaos.get("return_max_period", 6))
+    window = int(chaos.get("return_taps", 12))
+    taps = int(chaos.get("taps", 15))
+    if window > taps:
+        raise ConfigError(
+            f"config key 'column.chaos.return_taps' = {window} exceeds 'column.chaos.taps' = "
+            f"{taps}: the return-map states are those at the end of the measured taps"
+        )
+    if window < 2 * p_max:
+        raise ConfigError(
+            f"config key 'column.chaos.return_max_period' = {p_max} needs "
+            f"'column.chaos.return_taps' >= {2 * p_max} (got {window}): the window must hold "
+            "every phase of the longest period at least twice"
+        )
 
     cont = cfg.get("continuum", {})
     conv = cont.get("convergence", {})
@@ -114,6 +132,9 @@ def chaos_params(cfg: Mapping) -> dict:
         "perturbation": 1.0,
         "twin_epsilon": 1.0e-9,
         "plain": True,
+        "return_max_period": 6,
+        "return_taps": 12,
+        "return_tolerance": 1.0e-6,
     }
     return {
         "physics": c["physics"],

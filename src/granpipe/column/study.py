@@ -5,7 +5,8 @@
    many taps, for an ensemble of starts perturbed inside the stick band (generic set).
 3. Chaos map: largest Lyapunov exponent over a grid of tap amplitude a and period T, from
    the tangent dynamics with saltation, checked against twin trajectories and against the
-   plain variational solution (no saltation), each point an ensemble with a t-interval.
+   plain variational solution (no saltation), each point an ensemble with a t-interval;
+   and, from the same runs, the period of the tap-to-tap return map (Theorem 1).
 4. Continuum models against the discrete column (paper Fig. 2), and their convergence.
 
 Every function returns an :class:`xarray.Dataset` whose variables carry ``units`` and
@@ -36,6 +37,7 @@ __all__ = [
     "relaxation_ensemble",
     "relaxation_fit",
     "lyapunov_point",
+    "return_period",
     "chaos_map",
     "continuum_comparison",
     "continuum_convergence",
@@ -323,8 +325,11 @@ def lyapunov_point(
     twin_epsilon: float,
     plain: bool = True,
     step_factor: float = 0.1,
+    return_max_period: int = 6,
+    return_taps: int = 12,
+    return_tolerance: float = 1e-6,
 ):
-    """Largest Lyapunov exponent at one (a, T): per replica, three estimates.
+    """Largest Lyapunov exponent and return-map period at one (a, T), per replica.
 
     ``lambda_tap`` from the tangent dynamics with saltation (the estimate of the map),
     ``lambda_twin`` from twin trajectories (ε = ``twin_epsilon`` in the scaled norm), and
@@ -332,7 +337,24 @@ def lyapunov_point(
     tap [1/tap]; divide by T for per unit time. A replica whose column breaks (the floor
     passes through a particle: the contact law is too soft for the tap) gives NaN and is
     counted in ``failed``.
+
+    The same tangent run samples the state at the end of every measured tap, t = kT
+    (positions, velocities, contact modes: the state the next tap starts from), and
+    :func:`return_period` finds the smallest period p ≤ ``return_max_period`` of the
+    tap-to-tap return map over the last ``return_taps`` of these states
+    (``return_period``: p, 0 = none up to the maximum, −2 = undecided, −1 = the column
+    broke), with the
+    largest distance per lag (``return_distance``) and the fraction of those states at
+    rest (``rest_fraction``). Sampling at t = kT adds no step: the exponents are the same
+    bit for bit with or without it.
     """
+    if not 1 <= return_taps <= n_taps:
+        raise ValueError(f"return_taps = {return_taps} must be in [1, taps = {n_taps}]")
+    if return_taps < 2 * return_max_period:
+        raise ValueError(
+            f"return_taps = {return_taps} must be at least 2 return_max_period"
+            f" = {2 * return_max_period}"
+        )
     p = physics(phys)
     h = d.default_step(p, step_factor)
     replicas = list(replicas)
@@ -341,6 +363,9 @@ def lyapunov_point(
     plain_l = np.full(len(replicas), np.nan)
     growth = np.full((len(replicas), n_taps), np.nan)
     failed = np.zeros(len(replicas), dtype=np.int64)
+    period = np.full(len(replicas), -1, dtype=np.int64)
+    rdist = np.full((len(replicas), return_max_period), np.nan)
+    rest = np.full(len(replicas), np.nan)
     seeds = []
     for k, rep in enumerate(replicas):
         rng = replica_rng(STUDY, dict(phys), rep)
@@ -353,7 +378,14 @@ def lyapunov_point(
             u /= np.linalg.norm(u)
             sy, sv = d.tangent_scales(p)
             s.dy, s.dv = u[: p.N] * sy, u[p.N :] * sv
-            out = d.simulate(p, s, n_taps, h=h, tangent=True, sample_fracs=())
+            # states at the end of every tap (f = 1), the last return_taps of them
+            out = d.simulate(p, s, n_taps, h=h, tangent=True, sample_fracs=(1.0,))
+            ys = out["samples"][-return_taps:, 0]
+            vs = out["samples_v"][-return_taps:, 0]
+            ms = out["sample_modes"][-return_taps:, 0]
+            x = np.concatenate([ys / sy, vs / sv], axis=1)
+            period[k], rdist[k] = return_period(x, ms, return_max_period, return_tolerance)
+            rest[k] = float(np.mean(np.all((vs == 0.0) & (ms == d.STICK), axis=1)))
             growth[k] = out["log_growth"]
             lam[k] = float(np.mean(out["log_growth"]))
             twin[k] = float(np.mean(_twin_lyapunov(p, start.copy(), u, n_taps, twin_epsilon, h)))
@@ -366,6 +398,7 @@ def lyapunov_point(
                 plain_l[k] = float(np.mean(out2["log_growth"]))
         except SimulationError:
             failed[k] = 1
+            period[k] = -1
     ds = xr.Dataset(
         {
             "lambda_tap": (
@@ -399,6 +432,33 @@ def lyapunov_point(
                 failed,
                 {"units": "1", "long_name": "1 if the column broke (particle passed through)"},
             ),
+            "return_period": (
+                "replica",
+                period,
+                {
+                    "units": "taps",
+                    "long_name": "smallest period of the tap-to-tap return map "
+                    f"(0: none up to {return_max_period}; -2: undecided; -1: column broke)",
+                },
+            ),
+            "return_distance": (
+                ("replica", "lag"),
+                rdist,
+                {
+                    "units": "1",
+                    "long_name": "largest scaled distance |x_(k+p) - x_k| over the return "
+                    "window (norm sqrt(sum (dy/r)^2 + (dv/(omega_c r))^2))",
+                },
+            ),
+            "rest_fraction": (
+                "replica",
+                rest,
+                {
+                    "units": "1",
+                    "long_name": "fraction of the return-window states at rest "
+                    "(all contacts stuck, all velocities zero)",
+                },
+            ),
         },
         coords={
             "replica": (
@@ -407,10 +467,72 @@ def lyapunov_point(
                 {"units": "1", "long_name": "replica index"},
             ),
             "tap": ("tap", np.arange(n_taps), {"units": "1", "long_name": "measured tap"}),
+            "lag": (
+                "lag",
+                np.arange(1, return_max_period + 1),
+                {"units": "taps", "long_name": "lag p of the return-map distance"},
+            ),
         },
-        attrs={"a": p.a, "T": p.T, "N": p.N, "twin_epsilon": twin_epsilon},
+        attrs={
+            "a": p.a,
+            "T": p.T,
+            "N": p.N,
+            "twin_epsilon": twin_epsilon,
+            "return_max_period": return_max_period,
+            "return_taps": return_taps,
+            "return_tolerance": return_tolerance,
+        },
     )
     return ds, seeds
+
+
+UNDECIDED_MARGIN = 100.0
+"""A period p > 1 is undecided when a shorter lag comes within this factor of the tolerance."""
+
+
+def return_period(x, modes, max_period: int, tolerance: float):
+    """Smallest period p ≤ ``max_period`` of a sequence of states x_0 … x_(L−1).
+
+    p is a period if ||x_(k+p) − x_k|| < ``tolerance`` and the contact modes of x_(k+p)
+    and x_k agree for every pair inside the window (k = 0 … L − 1 − p; with
+    L ≥ 2 ``max_period`` every phase of a p-cycle is compared at least once). The norm is
+    the Euclidean one of the rows of ``x`` (the caller scales them: y/r, v/(ω_c r), the
+    norm of :func:`granpipe.column.discrete.tangent_scales`). A NaN state makes every
+    lag that touches it fail.
+
+    A slow oscillating approach to a fixed point (multiplier μ near −1) closes the lag-2
+    distance (∝ |1 − μ²|) long before the lag-1 one (∝ |1 − μ|) and would pass for
+    period 2. So a period p > 1 counts only if every shorter lag stays above
+    :data:`UNDECIDED_MARGIN` × ``tolerance``; otherwise the result is −2 (undecided: still
+    converging, or too close to the bifurcation that created the p-cycle).
+
+    Parameters
+    ----------
+    x : (L, n) float64, scaled states
+    modes : (L, N) int or None, contact modes (None: not compared)
+    max_period : int ≥ 1, with L ≥ 2 max_period
+    tolerance : float > 0
+
+    Returns
+    -------
+    period : int, the smallest period; 0 if none up to ``max_period``; −2 if undecided
+    distance : (max_period,) float64, the largest distance over the window per lag p
+    """
+    x = np.asarray(x, dtype=np.float64)
+    L = x.shape[0]
+    if max_period < 1 or L < 2 * max_period:
+        raise ValueError(f"need max_period >= 1 and at least 2 max_period states, got {L}")
+    dist = np.full(max_period, np.nan)
+    period = 0
+    for lag in range(1, max_period + 1):
+        dd = np.sqrt(np.sum((x[lag:] - x[:-lag]) ** 2, axis=1))
+        dist[lag - 1] = np.max(dd)  # NaN if any state is NaN
+        same = True if modes is None else bool(np.all(modes[lag:] == modes[:-lag]))
+        if period == 0 and same and dist[lag - 1] < tolerance:
+            period = lag
+    if period > 1 and not np.all(dist[: period - 1] >= UNDECIDED_MARGIN * tolerance):
+        period = -2
+    return period, dist
 
 
 def chaos_map(points: Iterable[xr.Dataset], confidence: float = 0.95):
@@ -418,11 +540,26 @@ def chaos_map(points: Iterable[xr.Dataset], confidence: float = 0.95):
 
     ``chaotic`` is 1 where the lower end of the interval of λ (per tap, with saltation) is
     above zero, 0 where the upper end is below zero, and −1 (undecided) otherwise.
+
+    Return-map periods (:func:`lyapunov_point`): ``period_counts`` (a, T, period) counts
+    the replicas per detected period (period 0: none up to the maximum; broken columns
+    and undecided replicas are left out, the latter counted in ``period_undecided``),
+    ``period_mode`` is the most common detected period (the smallest on a tie; 0 if no
+    replica has one), ``period_fraction`` the fraction of the unbroken replicas with a
+    detected period, ``period_max`` the largest detected one, ``rest_fraction`` the mean
+    fraction of return-window states at rest.
     """
     pts = list(points)
     A = np.array(sorted({float(ds.attrs["a"]) for ds in pts}))
     T = np.array(sorted({float(ds.attrs["T"]) for ds in pts}))
     shape = (A.size, T.size)
+    p_max = max(int(ds.attrs.get("return_max_period", 0)) for ds in pts)
+    counts = np.zeros((*shape, p_max + 1), dtype=np.int64)
+    p_mode = np.zeros(shape, dtype=np.int64)
+    p_top = np.zeros(shape, dtype=np.int64)
+    p_frac = np.full(shape, np.nan)
+    undecided = np.zeros(shape, dtype=np.int64)
+    rest = np.full(shape, np.nan)
     fields = {
         k: np.full(shape, np.nan)
         for k in (
@@ -464,6 +601,18 @@ def chaos_map(points: Iterable[xr.Dataset], confidence: float = 0.95):
             chaotic[i, j] = 1
         elif np.isfinite(hi) and hi < 0:
             chaotic[i, j] = 0
+        if "return_period" in ds:
+            per = ds["return_period"].values
+            undecided[i, j] = int(np.sum(per == -2))
+            n_ok = int(np.sum(per != -1))
+            per = per[per >= 0]
+            counts[i, j] = np.bincount(per, minlength=p_max + 1)[: p_max + 1]
+            if n_ok:
+                p_frac[i, j] = float(np.sum(per > 0)) / n_ok
+                rest[i, j] = float(np.nanmean(ds["rest_fraction"].values))
+            if np.any(per > 0):
+                p_mode[i, j] = int(np.argmax(counts[i, j, 1:])) + 1
+                p_top[i, j] = int(per.max())
     names = {
         "lambda_mean": ("1/tap", "mean largest Lyapunov exponent (tangent with saltation)"),
         "lambda_low": ("1/tap", f"lower end of the {confidence:.0%} t-interval"),
@@ -491,13 +640,53 @@ def chaos_map(points: Iterable[xr.Dataset], confidence: float = 0.95):
         chaotic,
         {"units": "1", "long_name": "1 chaotic, 0 regular, -1 undecided (interval contains 0)"},
     )
+    data["period_counts"] = (
+        ("a", "T", "period"),
+        counts,
+        {"units": "1", "long_name": "replicas per detected return-map period (0: none)"},
+    )
+    data["period_mode"] = (
+        ("a", "T"),
+        p_mode,
+        {"units": "taps", "long_name": "most common detected return-map period (0: none)"},
+    )
+    data["period_max"] = (
+        ("a", "T"),
+        p_top,
+        {"units": "taps", "long_name": "largest detected return-map period (0: none)"},
+    )
+    data["period_fraction"] = (
+        ("a", "T"),
+        p_frac,
+        {"units": "1", "long_name": "fraction of replicas with a detected return-map period"},
+    )
+    data["period_undecided"] = (
+        ("a", "T"),
+        undecided,
+        {"units": "1", "long_name": "replicas whose return-map period is undecided"},
+    )
+    data["rest_fraction"] = (
+        ("a", "T"),
+        rest,
+        {"units": "1", "long_name": "mean fraction of return-window states at rest"},
+    )
+    attrs = {"confidence": confidence, "return_max_period": p_max}
+    for key in ("return_taps", "return_tolerance"):
+        vals = {ds.attrs[key] for ds in pts if key in ds.attrs}
+        if len(vals) == 1:
+            attrs[key] = vals.pop()
     return xr.Dataset(
         data,
         coords={
             "a": ("a", A, {"units": "length", "long_name": "tap amplitude a"}),
             "T": ("T", T, {"units": "time", "long_name": "tap period T"}),
+            "period": (
+                "period",
+                np.arange(p_max + 1),
+                {"units": "taps", "long_name": "detected return-map period (0: none)"},
+            ),
         },
-        attrs={"confidence": confidence},
+        attrs=attrs,
     )
 
 

@@ -1,8 +1,9 @@
 """Figures of the column study: one function per figure, data in, Figure out.
 
 fig1 trajectories (paper Fig. 1), fig2 continuum vs discrete (paper Fig. 2), and our
-fig3 density relaxation, fig4 chaos map, fig5 continuum convergence, fig6 Lyapunov
-estimates (saltation tangent vs twins vs plain variational).
+fig3 density relaxation, fig4 chaos map (Lyapunov exponents and return-map periods),
+fig5 continuum convergence, fig6 Lyapunov estimates (saltation tangent vs twins vs plain
+variational).
 """
 
 from __future__ import annotations
@@ -171,12 +172,76 @@ def fig3_density_relaxation(ens: xr.Dataset, fit: dict | None = None, unit: str 
     return fig
 
 
+def _period_panel(ax, cmap_ds: xr.Dataset, length_unit: str, time_unit: str):
+    """The most common return-map period per (a, T) cell; 'none' where no period ≤ p_max."""
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+
+    A = cmap_ds["a"].values
+    T = cmap_ds["T"].values
+    p_max = int(cmap_ds.attrs.get("return_max_period", cmap_ds.sizes["period"] - 1))
+    mode = cmap_ds["period_mode"].values.astype(float)
+    frac = cmap_ds["period_fraction"].values
+    counts = cmap_ds["period_counts"].values
+    undecided = (
+        cmap_ds["period_undecided"].values
+        if "period_undecided" in cmap_ds
+        else np.zeros(mode.shape, dtype=int)
+    )
+    # white: no replica with data, or every replica undecided
+    field = np.where(np.isfinite(frac) & (counts.sum(axis=-1) > 0), mode, np.nan)
+    # 0 (none) light grey, then one light colour per period 1 … p_max (black text stays legible)
+    ramp = plt.get_cmap("YlGnBu")
+    colours = ["0.85", *[ramp(0.15 + 0.6 * k / max(p_max - 1, 1)) for k in range(p_max)]]
+    norm = BoundaryNorm(np.arange(-0.5, p_max + 1.5), len(colours))
+    im = ax.pcolormesh(
+        np.arange(T.size + 1),
+        np.arange(A.size + 1),
+        field,
+        cmap=ListedColormap(colours),
+        norm=norm,
+        shading="flat",
+    )
+    ticks = [0, *(q for q in (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64) if q <= p_max)]
+    if ticks[-1] != p_max:
+        ticks.append(p_max)
+    cb = ax.figure.colorbar(im, ax=ax, ticks=ticks)
+    cb.ax.set_yticklabels([f"none ≤ {p_max}", *map(str, ticks[1:])])
+    cb.set_label("most common return-map period p [taps]")
+    chaotic = cmap_ds["chaotic"].values
+    for i in range(A.size):
+        for j in range(T.size):
+            und = int(undecided[i, j])
+            n = int(counts[i, j].sum()) + und
+            if n == 0:
+                txt = "n/a"
+            elif n == und:
+                txt = f"undecided\n{und}/{n}"
+            else:
+                m = int(mode[i, j])
+                txt = f"{f'p = {m}' if m else 'none'}\n{int(counts[i, j, m])}/{n}"
+                txt += f" ({und}?)" if und else ""
+            if chaotic[i, j] == 1:
+                ax.add_patch(plt.Rectangle((j, i), 1, 1, fill=False, hatch="//", lw=0))
+            ax.text(j + 0.5, i + 0.5, txt, ha="center", va="center", fontsize=7)
+    ax.set_xticks(np.arange(T.size) + 0.5, [f"{x:g}" for x in T])
+    ax.set_yticks(np.arange(A.size) + 0.5, [f"{x:g}" for x in A])
+    ax.set_xlabel(f"tap period T [{time_unit}]")
+    ax.set_ylabel(f"tap amplitude a [{length_unit}]")
+    ax.set_title(
+        f"return map x_k -> x_(k+1) at t = kT: period (replicas with it / all, '?' "
+        f"undecided); tolerance {cmap_ds.attrs.get('return_tolerance', float('nan')):g}",
+        fontsize=8,
+    )
+
+
 def fig4_chaos_map(cmap_ds: xr.Dataset, length_unit: str = "m", time_unit: str = "s"):
-    """λ per tap over (a, T); chaotic points (interval above 0) marked, regular ones too."""
+    """λ per tap and per unit time over (a, T), chaotic points (interval above 0) marked;
+    and, when measured, the return-map period per point in the same layout."""
     A = cmap_ds["a"].values
     T = cmap_ds["T"].values
     lam = cmap_ds["lambda_mean"].values
-    fig, axes = plt.subplots(1, 2, figsize=(13, 5))
+    periods = "period_mode" in cmap_ds
+    fig, axes = plt.subplots(1, 3 if periods else 2, figsize=(19.5 if periods else 13, 5))
     for ax, field, label in (
         (axes[0], lam, "λ [1/tap]"),
         (axes[1], cmap_ds["lambda_time"].values, f"λ/T [1/{time_unit}]"),
@@ -210,10 +275,13 @@ def fig4_chaos_map(cmap_ds: xr.Dataset, length_unit: str = "m", time_unit: str =
         ax.set_yticks(np.arange(A.size) + 0.5, [f"{x:g}" for x in A])
         ax.set_xlabel(f"tap period T [{time_unit}]")
         ax.set_ylabel(f"tap amplitude a [{length_unit}]")
+    if periods:
+        _period_panel(axes[2], cmap_ds, length_unit, time_unit)
     conf = cmap_ds.attrs.get("confidence", 0.95)
     fig.suptitle(
         f"Largest Lyapunov exponent of the tapped column (tangent with saltation); "
         f"hatched: {conf:.0%} t-interval above 0 (chaos), 'regular': below 0"
+        + ("; right: period of the return map" if periods else "")
     )
     fig.tight_layout()
     return fig
