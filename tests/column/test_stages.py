@@ -1,6 +1,8 @@
 """The column's CLI stages end to end on a tiny configuration (runs → figures)."""
 
 import json
+import re
+import shutil
 
 import numpy as np
 import pandas as pd
@@ -210,3 +212,29 @@ def test_stage_pipeline(tmp_path):
     for k in range(1, 7):
         assert list((tmp_path / "figures").glob(f"fig{k}_*.png"))
         assert list((tmp_path / "figures").glob(f"fig{k}_*.pdf"))
+
+    # aggregation refuses files that do not belong together, naming the file
+    def refused(args, match):
+        res = CliRunner().invoke(cli, args)
+        assert res.exit_code != 0
+        assert re.search(match, str(res.exception) + res.output), (res.exception, res.output)
+
+    copied = tmp_path / "runs" / "batch_0000.nc"
+    shutil.copy(relax[1], copied)  # a valid batch 1 under batch 0's name
+    ens_args = ["ensemble", "--params", j({}), "--kind", "relaxation", "--out"]
+    refused([*ens_args, str(tmp_path / "x.nc"), str(copied)], r"batch_0000\.nc holds batch 1")
+    refused([*ens_args, str(tmp_path / "x.nc"), str(relax[0]), str(relax[0])], "appears twice")
+    refused([*ens_args, str(tmp_path / "x.nc"), str(chaos[0])], r"chaos_.*kind = 'chaos'")
+    chaos_args = ["ensemble", "--params", j({}), "--kind", "chaos", "--out", str(tmp_path / "y.nc")]
+    refused([*chaos_args, str(chaos[0]), str(chaos[0])], "appears twice")
+    renamed = tmp_path / "runs" / "a=0.1,T=0.3.nc"
+    shutil.copy(chaos[0], renamed)
+    refused([*chaos_args, str(renamed)], r"a=0\.1,T=0\.3\.nc holds the point a=0\.0002")
+    garbage = tmp_path / "runs" / "broken.nc"
+    garbage.write_bytes(b"not a netCDF file")
+    refused([*chaos_args, str(garbage)], r"cannot read .*broken\.nc")
+    fits_args = ["fits", "--params", j({"n_boot": 20}), "--relaxation", str(ens_r)]
+    fits_args += ["--chaos", str(ens_c), "--out-csv", str(tmp_path / "s.csv")]
+    fits_args += ["--out-nc", str(tmp_path / "f.nc"), "--out-note", str(tmp_path / "n.md")]
+    swapped = ["--continuum", str(conv), "--convergence", str(comp)]
+    refused([*fits_args, *swapped], r"convergence\.nc is not the expected input: attribute kind")

@@ -42,6 +42,74 @@ def _write(ds, out, params, seeds=None, **attrs):
     _log(f"wrote {out}")
 
 
+def _inputs(paths, stage, kind):
+    """Read column files and check that each is a ``stage`` file of ``kind``.
+
+    Raises RunFileError naming the file: unreadable, from another study, stage or kind.
+    """
+    from ..io import expect_attrs, read_dataset
+
+    out = []
+    for p in paths:
+        ds = read_dataset(p)
+        expect_attrs(ds, p, study="column", stage=stage, kind=kind)
+        out.append(ds)
+    return out
+
+
+def _same_physics(datasets, paths, ignore=()):
+    """Refuse (naming the file) datasets whose config physics differ beyond ``ignore``."""
+    from ..io import RunFileError, config_from_attrs
+
+    ref = None
+    for ds, p in zip(datasets, paths, strict=True):
+        phys = {k: v for k, v in config_from_attrs(ds).get("physics", {}).items()}
+        for k in ignore:
+            phys.pop(k, None)
+        if ref is None:
+            ref = (phys, p)
+        elif phys != ref[0]:
+            raise RunFileError(
+                f"{p} was computed for another column than {ref[1]}: physics {phys} "
+                f"against {ref[0]}"
+            )
+
+
+def _reduced_inputs(relax_path, chaos_path, cont_path, conv_path):
+    """The fits' and figures' inputs, each checked to be the file its option names, the
+    continuum and convergence runs of one column (RunFileError names the file)."""
+    (ens,) = _inputs([relax_path], "ensemble", "relaxation")
+    (cmap,) = _inputs([chaos_path], "ensemble", "chaos")
+    (comp,) = _inputs([cont_path], "runs", "continuum")
+    (conv,) = _inputs([conv_path], "runs", "convergence")
+    _same_physics([comp, conv], [cont_path, conv_path])
+    return ens, cmap, comp, conv
+
+
+def _check_chaos_points(datasets, paths):
+    """Chaos points: one file per (a, T), its name (if a=..,T=..) matching its content,
+    the same column otherwise, and no replica twice in a file (RunFileError names it)."""
+    import re
+
+    from ..io import RunFileError
+
+    seen = {}
+    for ds, p in zip(datasets, paths, strict=True):
+        key = (float(ds.attrs["a"]), float(ds.attrs["T"]))
+        m = re.fullmatch(r"a=([0-9.e+-]+),T=([0-9.e+-]+)", Path(p).stem)
+        if m and (float(m.group(1)), float(m.group(2))) != key:
+            raise RunFileError(f"{p} holds the point a={key[0]:g}, T={key[1]:g}, not its name's")
+        if key in seen:
+            raise RunFileError(
+                f"the point a={key[0]:g}, T={key[1]:g} appears twice: {seen[key]}, {p}"
+            )
+        seen[key] = p
+        reps = ds["replica"].values
+        if len(set(reps.tolist())) != reps.size:
+            raise RunFileError(f"{p}: a replica appears twice in the point")
+    _same_physics(datasets, paths, ignore=("a", "T"))
+
+
 @cli.command("trajectories")
 @params_option
 @click.option("--set", "set_name", required=True, help="Name of the column in params['sets'].")
@@ -58,7 +126,7 @@ def trajectories_cmd(params, set_name, out):
         float(params["step_factor"]),
     )
     ds.attrs["set"] = set_name
-    _write(ds, out, params, stage="runs", wall_time_s=time.time() - t0)
+    _write(ds, out, params, stage="runs", kind="trajectories", wall_time_s=time.time() - t0)
 
 
 @cli.command("relaxation")
@@ -82,7 +150,16 @@ def relaxation_cmd(params, batch, out):
         float(params["perturbation"]),
         float(params["step_factor"]),
     )
-    _write(ds, out, params, seeds=seeds, stage="runs", batch=batch, wall_time_s=time.time() - t0)
+    _write(
+        ds,
+        out,
+        params,
+        seeds=seeds,
+        stage="runs",
+        kind="relaxation",
+        batch=batch,
+        wall_time_s=time.time() - t0,
+    )
 
 
 @cli.command("chaos")
@@ -120,6 +197,7 @@ def chaos_cmd(params, amplitude, period, out):
         {**params, "physics": phys},
         seeds=seeds,
         stage="runs",
+        kind="chaos",
         wall_time_s=time.time() - t0,
     )
 
@@ -143,7 +221,7 @@ def continuum_cmd(params, out):
         int(params["bsr_derived_refinement"]),
     )
     _log(f"distances to the discrete column [h] (positions, displacements, relative): {dist}")
-    _write(ds, out, params, stage="runs", wall_time_s=time.time() - t0)
+    _write(ds, out, params, stage="runs", kind="continuum", wall_time_s=time.time() - t0)
 
 
 @cli.command("convergence")
@@ -166,7 +244,7 @@ def convergence_cmd(params, out):
         c["bsr_derived_refinements"],
     )
     _log("observed orders: " + ", ".join(f"{k}: {v}" for k, v in ds.attrs.items() if "orders" in k))
-    _write(ds, out, params, stage="runs", wall_time_s=time.time() - t0)
+    _write(ds, out, params, stage="runs", kind="convergence", wall_time_s=time.time() - t0)
 
 
 @cli.command("ensemble")
@@ -176,13 +254,17 @@ def convergence_cmd(params, out):
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=True))
 def ensemble_cmd(params, kind, out, inputs):
     """Reduce run files: relaxation batches → per-tap statistics; chaos points → the map."""
-    from ..io import read_dataset
+    from ..io import check_run_files
     from .study import chaos_map, relaxation_ensemble
 
-    datasets = [read_dataset(p) for p in inputs]
+    if kind == "relaxation":
+        # one column, batches named as they hold, no replica twice
+        check_run_files(inputs, study="column")
+    datasets = _inputs(inputs, "runs", kind)
     if kind == "relaxation":
         ds = relaxation_ensemble(datasets)
     else:
+        _check_chaos_points(datasets, inputs)
         ds = chaos_map(datasets, float(params.get("confidence", 0.95)))
     _write(ds, out, params, stage="ensemble", kind=kind)
 
@@ -446,13 +528,10 @@ def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_
     import xarray as xr
 
     from ..analysis.summary import summary_row, write_summary
-    from ..io import read_dataset, write_text
+    from ..io import write_text
     from .study import continuum_rows, relaxation_fit
 
-    ens = read_dataset(relax_path)
-    cmap = read_dataset(chaos_path)
-    comp = read_dataset(cont_path)
-    conv = read_dataset(conv_path)
+    ens, cmap, comp, conv = _reduced_inputs(relax_path, chaos_path, cont_path, conv_path)
     units = params.get("units", {"length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s"})
     rows = []
 
@@ -559,27 +638,25 @@ def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_
 def figures_cmd(params, traj, cont_path, relax_path, chaos_path, conv_path, outdir):
     """Figures 1–6 as PNG and PDF: fig<k>_<name>.{png,pdf}."""
     from ..figures import column as F
-    from ..io import read_dataset
     from .study import relaxation_fit
 
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     units = params.get("units", {"length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s"})
-    ens = read_dataset(relax_path)
-    cmap = read_dataset(chaos_path)
+    ens, cmap, comp, conv = _reduced_inputs(relax_path, chaos_path, cont_path, conv_path)
     made = []
     made += F.save(
-        F.fig1_trajectories([read_dataset(p) for p in traj], units["fig2_length"]),
+        F.fig1_trajectories(_inputs(traj, "runs", "trajectories"), units["fig2_length"]),
         out / "fig1_trajectories",
     )
-    made += F.save(F.fig2_continuum(read_dataset(cont_path)), out / "fig2_continuum")
+    made += F.save(F.fig2_continuum(comp), out / "fig2_continuum")
     made += F.save(
         F.fig3_density_relaxation(ens, relaxation_fit(ens, 200), f"kg/{units['length']}"),
         out / "fig3_density_relaxation",
     )
     made += F.save(F.fig4_chaos_map(cmap, units["length"], units["time"]), out / "fig4_chaos_map")
     made += F.save(
-        F.fig5_continuum_convergence(read_dataset(conv_path)),
+        F.fig5_continuum_convergence(conv),
         out / "fig5_continuum_convergence",
     )
     made += F.save(F.fig6_lyapunov_estimates(cmap), out / "fig6_lyapunov_estimates")
