@@ -12,18 +12,7 @@ from granpipe.column.study import (
     return_period,
 )
 from granpipe.seeds import replica_rng
-
-GENERIC = {
-    "N": 4,
-    "m": 0.001,
-    "r": 0.005,
-    "g": 9.81,
-    "stiffness_factor": 50.0,
-    "e": 0.09,
-    "a": 0.005,
-    "tap_duration": 0.05,
-    "T": 0.3,
-}
+from tests.column.test_stages import GENERIC
 
 
 def _cycle(period, n_states, dim=6, noise=1e-14, seed=0):
