@@ -121,7 +121,7 @@ def _point(a, T, periods, lam):
 
 def test_note_reads_the_periods_honestly():
     """Period 1 up to chaos → 'no'; a period 2 before chaos → 'in part'; undecided named."""
-    from granpipe.column.cli import _return_periods_reading
+    from granpipe.column.fits import _return_periods_reading
 
     units = {"length": "m", "time": "s"}
     neg, pos = [-0.5, -0.6, -0.55], [1.0, 1.2, 1.1]
