@@ -63,7 +63,7 @@ def _same_physics(datasets, paths, ignore=()):
 
     ref = None
     for ds, p in zip(datasets, paths, strict=True):
-        phys = {k: v for k, v in config_from_attrs(ds).get("physics", {}).items()}
+        phys = dict(config_from_attrs(ds).get("physics", {}))
         for k in ignore:
             phys.pop(k, None)
         if ref is None:
