@@ -449,6 +449,7 @@ def figures_stage(
     """Figures 1, 3, 4, 5 at one side-wall friction (:func:`figure_mu_w`) and Fig. 6, the
     thresholds against it (PNG and PDF)."""
     from ..figures import box as figs
+    from ..figures import save_figure
     from .fitting import PAPER
 
     out_dir = Path(out_dir)
@@ -503,19 +504,21 @@ def figures_stage(
         )
     if panels:
         fig = figs.fig1_snapshots(panels, float(params["Lx"]))
-        written += figs.save(fig, out_dir, layout.FIGURES[1])
-    written += figs.save(figs.fig3_phase_diagram(points, ths), out_dir, layout.FIGURES[3])
-    written += figs.save(
-        figs.fig4_granular_temperature(points, temp, n_fit), out_dir, layout.FIGURES[4]
+        written += save_figure(fig, Path(out_dir) / layout.FIGURES[1])
+    written += save_figure(figs.fig3_phase_diagram(points, ths), Path(out_dir) / layout.FIGURES[3])
+    written += save_figure(
+        figs.fig4_granular_temperature(points, temp, n_fit), Path(out_dir) / layout.FIGURES[4]
     )
-    written += figs.save(
-        figs.fig5_slip_probability(points, slips, temp, n_fit), out_dir, layout.FIGURES[5]
+    written += save_figure(
+        figs.fig5_slip_probability(points, slips, temp, n_fit), Path(out_dir) / layout.FIGURES[5]
     )
     paper_lines = {
         "paper: bouncing just above Γ = 1": PAPER["Gamma_bouncing"],
         "paper: random-start convection, K_m ≈ 3.3": math.sqrt(PAPER["K_m_break_random"]),
     }
-    written += figs.save(figs.fig6_wall_friction(all_ths, paper_lines), out_dir, layout.FIGURES[6])
+    written += save_figure(
+        figs.fig6_wall_friction(all_ths, paper_lines), Path(out_dir) / layout.FIGURES[6]
+    )
     if log:
         log("figures: " + ", ".join(str(p) for p in written))
     return written

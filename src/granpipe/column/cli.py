@@ -325,6 +325,7 @@ def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_
 def figures_cmd(params, traj, cont_path, relax_path, chaos_path, conv_path, outdir):
     """Figures 1–6 as PNG and PDF: fig<k>_<name>.{png,pdf}."""
     from ..figures import column as F
+    from ..figures import save_figure
     from .study import relaxation_fit
 
     out = Path(outdir)
@@ -332,20 +333,22 @@ def figures_cmd(params, traj, cont_path, relax_path, chaos_path, conv_path, outd
     units = params.get("units", {"length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s"})
     ens, cmap, comp, conv = _reduced_inputs(relax_path, chaos_path, cont_path, conv_path)
     made = []
-    made += F.save(
+    made += save_figure(
         F.fig1_trajectories(_inputs(traj, "runs", "trajectories"), units["fig2_length"]),
         out / "fig1_trajectories",
     )
-    made += F.save(F.fig2_continuum(comp), out / "fig2_continuum")
-    made += F.save(
+    made += save_figure(F.fig2_continuum(comp), out / "fig2_continuum")
+    made += save_figure(
         F.fig3_density_relaxation(ens, relaxation_fit(ens, 200), f"kg/{units['length']}"),
         out / "fig3_density_relaxation",
     )
-    made += F.save(F.fig4_chaos_map(cmap, units["length"], units["time"]), out / "fig4_chaos_map")
-    made += F.save(
+    made += save_figure(
+        F.fig4_chaos_map(cmap, units["length"], units["time"]), out / "fig4_chaos_map"
+    )
+    made += save_figure(
         F.fig5_continuum_convergence(conv),
         out / "fig5_continuum_convergence",
     )
-    made += F.save(F.fig6_lyapunov_estimates(cmap), out / "fig6_lyapunov_estimates")
+    made += save_figure(F.fig6_lyapunov_estimates(cmap), out / "fig6_lyapunov_estimates")
     for m in made:
         _log(f"wrote {m}")

@@ -184,6 +184,7 @@ def figures_stage(
     first the reference point).
     """
     from ..figures import drum as figs
+    from ..figures import save_figure
     from .layout import COMPARISON_FIGURES, FIGURES
 
     sec = filled({"figures": params["figures"]})
@@ -211,6 +212,6 @@ def figures_stage(
     }
     paths = []
     for k, name in {**FIGURES, **COMPARISON_FIGURES}.items():
-        paths += figs.save(makers[k](), outdir / f"fig{k}_{name}", dpi=dpi)
+        paths += save_figure(makers[k](), outdir / f"fig{k}_{name}", dpi=dpi)
     _log(f"wrote {len(paths)} figure files to {outdir}")
     return paths

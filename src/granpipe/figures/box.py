@@ -20,8 +20,6 @@ and snapshots (positions + order codes). :func:`save` writes PNG and PDF atomica
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import matplotlib
 
 matplotlib.use("Agg")
@@ -32,8 +30,6 @@ import pandas as pd  # noqa: E402
 from matplotlib.collections import EllipseCollection  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
-from ..io import atomic_path  # noqa: E402
-
 __all__ = [
     "ORDER_COLORS",
     "fig1_snapshots",
@@ -42,7 +38,6 @@ __all__ = [
     "fig5_slip_probability",
     "fig6_wall_friction",
     "segmented_curve",
-    "save",
 ]
 
 #: Fig. 1 colours: disordered, hexagonal (green), square (red).
@@ -369,15 +364,3 @@ def fig6_wall_friction(thresholds: pd.DataFrame, paper: dict | None = None):
     fig.legend(handles, labels, fontsize=7, loc="outside right upper",
                title="thresholds (arrows:\nbeyond the grid)", title_fontsize=7)  # fmt: skip
     return fig
-
-
-def save(fig, out_dir: str | Path, stem: str) -> list[Path]:
-    """Write ``<out_dir>/<stem>.png`` and ``.pdf`` atomically; close the figure."""
-    paths = []
-    for kind in ("png", "pdf"):
-        path = Path(out_dir) / f"{stem}.{kind}"
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format=kind, dpi=150)
-        paths.append(path)
-    plt.close(fig)
-    return paths

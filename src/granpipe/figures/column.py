@@ -24,22 +24,7 @@ __all__ = [
     "fig4_chaos_map",
     "fig5_continuum_convergence",
     "fig6_lyapunov_estimates",
-    "save",
 ]
-
-
-def save(fig, stem):
-    """Save ``fig`` as ``<stem>.png`` and ``<stem>.pdf`` atomically; return the paths."""
-    from ..io import atomic_path
-
-    paths = []
-    for ext in ("png", "pdf"):
-        path = f"{stem}.{ext}"
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format=ext, dpi=150 if ext == "png" else None, bbox_inches="tight")
-        paths.append(path)
-    plt.close(fig)
-    return paths
 
 
 def fig1_trajectories(runs: list[xr.Dataset], unit: str = "cm", time_unit: str = "s"):

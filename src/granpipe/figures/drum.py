@@ -17,9 +17,6 @@ snapshot. :func:`save` writes ``fig<k>_<name>.png`` and ``.pdf`` atomically.
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import matplotlib
 
 matplotlib.use("Agg")
@@ -29,8 +26,6 @@ import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 from matplotlib.collections import EllipseCollection  # noqa: E402
 
-from ..io import atomic_path  # noqa: E402
-
 __all__ = [
     "fig2_snapshot",
     "fig3_onset",
@@ -38,7 +33,6 @@ __all__ = [
     "fig5_lambda_vs_speed",
     "fig6_startup",
     "fig7_lag_vs_rotation",
-    "save",
 ]
 
 LAMBDA_COLOR = "tab:blue"
@@ -360,16 +354,3 @@ def fig2_snapshot(run: xr.Dataset) -> plt.Figure:
         cb = fig.colorbar(disks, ax=ax, shrink=0.7, extend="max")
         cb.set_label(f"speed [{run['snapshot_velocity'].attrs.get('units', '')}]")
     return fig
-
-
-def save(fig: plt.Figure, stem: str | os.PathLike, dpi: int = 200) -> list[Path]:
-    """Write ``<stem>.png`` and ``<stem>.pdf`` atomically; close the figure."""
-    stem = Path(stem)
-    paths = []
-    for ext in ("png", "pdf"):
-        path = stem.with_suffix(f".{ext}")
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format=ext, dpi=dpi)
-        paths.append(path)
-    plt.close(fig)
-    return paths
