@@ -86,6 +86,7 @@ def test_stage_pipeline(tmp_path):
         "bsr_derived_refinement": 2,
         "record_dt": 0.01,
         "sigma_width": 0.01,
+        "bsr_kernel_width": 1.0,
         "step_factor": 0.2,
         "convergence": {
             "t_end": 0.2,
@@ -93,6 +94,8 @@ def test_stage_pipeline(tmp_path):
             "bsr_refinements": [2, 4, 8],
             "bsr_t_end": 0.05,
             "bsr_derived_refinements": [2, 4, 8],
+            "sigma_widths": [0.01, 0.001],
+            "sigma_scan_refinement": 2,
         },
     }
     comp, conv = tmp_path / "runs" / "continuum.nc", tmp_path / "runs" / "convergence.nc"

@@ -219,6 +219,7 @@ def continuum_cmd(params, out):
         float(params["sigma_width"]),
         float(params["step_factor"]),
         int(params["bsr_derived_refinement"]),
+        float(params["bsr_kernel_width"]),
     )
     _log(f"distances to the discrete column [h] (positions, displacements, relative): {dist}")
     _write(ds, out, params, stage="runs", kind="continuum", wall_time_s=time.time() - t0)
@@ -242,6 +243,9 @@ def convergence_cmd(params, out):
         float(params["sigma_width"]),
         float(params["step_factor"]),
         c["bsr_derived_refinements"],
+        float(params["bsr_kernel_width"]),
+        [float(w) for w in c["sigma_widths"]],
+        int(c["sigma_scan_refinement"]),
     )
     _log("observed orders: " + ", ".join(f"{k}: {v}" for k, v in ds.attrs.items() if "orders" in k))
     _write(ds, out, params, stage="runs", kind="convergence", wall_time_s=time.time() - t0)

@@ -86,6 +86,10 @@ __all__ = [
     "solve_longwave",
     "solve_bsr",
     "bsr_kernel_force",
+    "solve_bsr_derived",
+    "bsr_bond_weights",
+    "bsr_rest_map",
+    "bsr_rest_state",
     "floor_state",
     "floor_position",
 ]
@@ -761,229 +765,327 @@ def solve_bsr(
 
 
 # --------------------------------------------------------------------------- derived BSR
-@njit
-def _ext_interp(f, z, dz, g):
-    """Linear interpolation at height z of f on cells of width dz whose first ``g`` cells lie
-    below z = 0 (ghost cells); constant beyond the ends."""
-    n = f.size
-    x = z / dz - 0.5 + g
-    if x <= 0.0:
-        return f[0]
-    i = int(x)
-    if i >= n - 1:
-        return f[n - 1]
-    w = x - i
-    return (1.0 - w) * f[i] + w * f[i + 1]
+BSR_KERNEL_WIDTH = 1.0
+"""Default half-width b of the derived BSR's label kernel (docs/column.md, "BSR derived
+from the force law"): b = 1 spreads each particle's mass evenly over its diameter."""
 
 
-@njit
-def _bsr_derived_force(u_ext, rho_ext, dz, g, e, w_sigma, G, phi, out):
-    """Source of the derived BSR model at the n interior cell centres, chain units.
+def bsr_bond_weights(ds: float, width: float = BSR_KERNEL_WIDTH) -> np.ndarray:
+    """Bond weights W_j of the derived BSR for the label offsets Δ_j = j ds, j = 1 … nb.
 
-    u_t + u u_z = −G − Φ₊ + Φ₋ with Φ± = [1 − e σ(±(u(z ± Δ±) − u(z)))] (1 − Δ±)⁺: the force
-    law of Eq. (24) between the material at z and its abutting neighbours, the material one
-    particle mass away: ∫_z^{z+Δ₊} ρ = ∫_{z−Δ₋}^{z} ρ = m (ρ the linear density, piecewise
-    constant on the cells; m = 1). There is no neighbour above where less than one mass is
-    left above z (the top layer), and none with a spacing beyond h (open contact). Below
-    the floor the ``g`` ghost cells carry the floor's velocity and a density continued
-    linearly from the column, so the floor holds the bottom layer as the chain's floor
-    contact does. No elastic force on or from material above the free top φ.
+    The force on the material at label s sums the chain's law over the material at
+    labels s ± Δ with the weight w(Δ) = k(Δ)/Δ, k the triangular density of half-width
+    ``width`` about Δ = 1 (the distribution of label separations between the material
+    of two abutting particles when each particle's mass is spread evenly over a label
+    interval of length ``width``). The midpoint rule gives W_j = ds k(Δ_j)/Δ_j, with k
+    normalised on the grid (Σ ds k(Δ_j) = 1) so that the bulk of the rest state balances
+    gravity exactly. ``width = 0`` is the point-particle kernel, k = δ(Δ − 1).
+    Label units (h); returns (nb,) float64.
     """
-    n = out.size
-    ne = rho_ext.size
-    M = np.empty(ne + 1)  # mass below each face, face 0 at z = −g dz
-    M[0] = 0.0
-    for j in range(ne):
-        M[j + 1] = M[j] + max(rho_ext[j], 0.0) * dz
-    for i in range(n):
-        zi = (i + 0.5) * dz
-        ie = i + g
-        out[i] = -G
-        if zi > phi or rho_ext[ie] <= 1e-9:
+    if not (ds > 0 and width >= 0):
+        raise ValueError(f"need ds > 0 and width >= 0, got ds={ds!r}, width={width!r}")
+    if width == 0.0:
+        nb = int(round(1.0 / ds))
+        if abs(nb * ds - 1.0) > 1e-9:
+            raise ValueError(f"the point-particle kernel needs 1/ds integer, got ds={ds!r}")
+        w = np.zeros(nb)
+        w[-1] = 1.0
+        return w
+    nb = int(math.floor((1.0 + width) / ds + 1e-9))
+    delta = np.arange(1, nb + 1) * ds
+    k = np.maximum(1.0 - np.abs(delta - 1.0) / width, 0.0)
+    if not k.sum() > 0:
+        raise ValueError(f"the kernel of half-width {width} has no bond on a grid of ds={ds}")
+    k /= k.sum() * ds
+    return ds * k / delta
+
+
+def bsr_rest_map(q: ColumnParams, s) -> np.ndarray:
+    """The chain's rest state as a map of the labels: Y(s) with Y_s = 1 − G (N − s) and
+    Y(k − ½) = y_k of the discrete rest state (Eq. 26), continued below s = 0 (the floor's
+    ghost material). Chain units."""
+    s = np.asarray(s, dtype=np.float64)
+    G, N = q.g, float(q.N)
+    return (0.5 - N * G) + (s - 0.5) - G * (N * (s - 0.5) - 0.5 * (s * s - 0.25))
+
+
+@njit
+def _bsr_accel(y, v, yg, vg, W, ds, G, e, w_sigma, first_pinned, out):
+    """Accelerations of the derived BSR's material points, chain units.
+
+    a(s) = −G − Σ_j W_j Φ(s, s + Δ_j) + Σ_j W_j Φ(s − Δ_j, s),
+    Φ(lo, hi) = [1 − e tanh(((v_hi − v_lo)/Δ)/w_σ)] (1 − (y_hi − y_lo)/Δ)⁺,
+
+    the law of Eq. (24) on the bond's compression per unit label length. Points i < 0 in
+    label order are the floor's ghosts (``yg``, ``vg``: ghost g at label −(g + ½) ds).
+    Points from ``first_pinned`` on are prescribed (their ``out`` is 0).
+    """
+    M = y.size
+    nb = W.size
+    ng = yg.size
+    for i in range(M):
+        if i >= first_pinned:
+            out[i] = 0.0
             continue
-        Mi = 0.5 * (M[ie] + M[ie + 1])
-        # neighbour above: the height where the mass below reaches Mi + 1
-        target = Mi + 1.0
-        if target < M[ne]:
-            j = ie
-            while M[j + 1] < target:
-                j += 1
-            za = (j - g) * dz + dz * (target - M[j]) / (M[j + 1] - M[j])
-            dp = za - zi
-            if dp < 1.0 and za <= phi:
-                ua = _ext_interp(u_ext, za, dz, g)
-                out[i] -= (1.0 - e * math.tanh((ua - u_ext[ie]) / w_sigma)) * (1.0 - dp)
-        target = Mi - 1.0
-        if target > 0.0:
-            j = ie
-            while M[j] > target:
-                j -= 1
-            zb = (j - g) * dz + dz * (target - M[j]) / (M[j + 1] - M[j])
-            dm = zi - zb
-            if dm < 1.0:
-                ub = _ext_interp(u_ext, zb, dz, g)
-                out[i] += (1.0 - e * math.tanh((u_ext[ie] - ub) / w_sigma)) * (1.0 - dm)
+        a = -G
+        for j in range(1, nb + 1):
+            wj = W[j - 1]
+            if wj == 0.0:
+                continue
+            dl = j * ds
+            k = i + j
+            if k < M:
+                c = 1.0 - (y[k] - y[i]) / dl
+                if c > 0.0:
+                    a -= wj * (1.0 - e * math.tanh((v[k] - v[i]) / (dl * w_sigma))) * c
+            k = i - j
+            if k >= 0:
+                yb = y[k]
+                vb = v[k]
+            else:
+                gi = -k - 1
+                if gi >= ng:
+                    continue
+                yb = yg[gi]
+                vb = vg[gi]
+            c = 1.0 - (y[i] - yb) / dl
+            if c > 0.0:
+                a += wj * (1.0 - e * math.tanh((v[i] - vb) / (dl * w_sigma))) * c
+        out[i] = a
 
 
-def rest_density(q: ColumnParams, z_cell: np.ndarray, dz: float) -> np.ndarray:
-    """Cell averages of the chain's rest density (mass m per length h), chain units.
+@njit
+def _bsr_set_bounds(t, y, v, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin, top_t,
+                    top_y, top_v):  # fmt: skip
+    """Ghosts ride with the floor; pinned points (hybrid top) with the discrete top."""
+    y0, v0, _ = _floor_at(t, A, Om, ts, in_tap)
+    for g in range(yg.size):
+        yg[g] = y0 + Yg[g]
+        vg[g] = v0
+    if first_pinned < y.size:
+        yt = np.interp(t, top_t, top_y)
+        vt = np.interp(t, top_t, top_v)
+        for i in range(first_pinned, y.size):
+            y[i] = yt + Ypin[i - first_pinned]
+            v[i] = vt
 
-    The rest map of the labels, y(z) = ∫(1 − G(N − z)) dz (:func:`longwave_equilibrium`),
-    inverted on the cell faces: ρ_i = (label above − label below)/Δz, the mass in the cell.
+
+@njit
+def _bsr_run(
+    Y, V, Yg, W, ds, G, e, w_sigma, A, Om, T, dur, t_end, rec_t, first_pinned, Ypin,
+    top_t, top_y, top_v, cfl, out_y,
+):  # fmt: skip
+    """RK4 of :func:`_bsr_accel`, steps ending at the floor's switches and the records.
+
+    The step follows the fastest linear rates, which do not depend on ds: the elastic
+    frequency ω² ≤ 4 Σ W_j/Δ_j and the rate 2 e c_max/w_σ Σ W_j/Δ_j of the viscosity the
+    smooth σ implies. Returns (records written, status: 0 ok, 1 blow-up, time).
     """
-    zf = np.linspace(0.0, float(q.N), 1280 * q.N + 1)
-    yf = longwave_equilibrium(q, zf)
-    faces = np.concatenate([z_cell - 0.5 * dz, [z_cell[-1] + 0.5 * dz]])
-    lab = np.clip(np.interp(faces, yf, zf), 0.0, float(q.N))
-    return np.diff(lab) / dz
+    M = Y.size
+    yg = np.empty(Yg.size)
+    vg = np.empty(Yg.size)
+    k1 = np.empty(M)
+    k2 = np.empty(M)
+    k3 = np.empty(M)
+    k4 = np.empty(M)
+    Ys = np.empty(M)
+    v1 = np.empty(M)
+    v2 = np.empty(M)
+    v3 = np.empty(M)
+    s2 = 0.0
+    for j in range(W.size):
+        s2 += W[j] / ((j + 1) * ds)
+    wave = math.sqrt(4.0 * s2)
+    vmax0 = 1.0 + A * Om
+    nrec = rec_t.size
+    i_rec = 0
+    t = 0.0
+    eps = 1e-12 * max(1.0, t_end)
+    while True:
+        kk = math.floor((t + eps) / T)
+        ts = kk * T
+        in_tap = A > 0.0 and t + eps < ts + dur
+        seg_end = ts + dur if in_tap else (kk + 1) * T
+        _bsr_set_bounds(t, Y, V, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin, top_t,
+                        top_y, top_v)  # fmt: skip
+        while i_rec < nrec and rec_t[i_rec] <= t + eps:
+            out_y[i_rec] = Y
+            i_rec += 1
+        if t >= t_end - eps:
+            return i_rec, 0, t
+        stop = min(seg_end, t_end)
+        if i_rec < nrec and rec_t[i_rec] < stop:
+            stop = rec_t[i_rec]
+        while stop - t > eps:
+            cmax = 0.0
+            for i in range(M - 1):
+                cmax = max(cmax, 1.0 - (Y[i + 1] - Y[i]) / ds)
+            hs = min(stop - t, cfl / (wave + 2.0 * e * max(cmax, 0.0) * s2 / w_sigma))
+            _bsr_set_bounds(t, Y, V, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
+                            top_t, top_y, top_v)  # fmt: skip
+            _bsr_accel(Y, V, yg, vg, W, ds, G, e, w_sigma, first_pinned, k1)
+            th = t + 0.5 * hs
+            for i in range(M):
+                Ys[i] = Y[i] + 0.5 * hs * V[i]
+                v1[i] = V[i] + 0.5 * hs * k1[i]
+            _bsr_set_bounds(th, Ys, v1, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
+                            top_t, top_y, top_v)  # fmt: skip
+            _bsr_accel(Ys, v1, yg, vg, W, ds, G, e, w_sigma, first_pinned, k2)
+            for i in range(M):
+                Ys[i] = Y[i] + 0.5 * hs * v1[i]
+                v2[i] = V[i] + 0.5 * hs * k2[i]
+            _bsr_set_bounds(th, Ys, v2, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
+                            top_t, top_y, top_v)  # fmt: skip
+            _bsr_accel(Ys, v2, yg, vg, W, ds, G, e, w_sigma, first_pinned, k3)
+            for i in range(M):
+                Ys[i] = Y[i] + hs * v2[i]
+                v3[i] = V[i] + hs * k3[i]
+            t1 = t + hs
+            _bsr_set_bounds(t1, Ys, v3, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
+                            top_t, top_y, top_v)  # fmt: skip
+            _bsr_accel(Ys, v3, yg, vg, W, ds, G, e, w_sigma, first_pinned, k4)
+            bad = False
+            for i in range(M):
+                Y[i] += hs / 6.0 * (V[i] + 2.0 * v1[i] + 2.0 * v2[i] + v3[i])
+                V[i] += hs / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+                if not (math.isfinite(Y[i]) and abs(V[i]) < 1e3 * vmax0):
+                    bad = True
+            t = t1
+            if bad:
+                return i_rec, 1, t
+            _bsr_set_bounds(t, Y, V, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
+                            top_t, top_y, top_v)  # fmt: skip
 
 
-def _material_velocity(mom, rho, thr=1e-6):
-    """u = (ρu)/ρ where there is material; empty cells take the velocity of the nearest
-    material cell below them."""
-    has = rho > thr
-    u = np.where(has, mom / np.where(has, rho, 1.0), 0.0)
-    if not has.any():
-        return u
-    idx = np.where(has, np.arange(u.size), 0)
-    np.maximum.accumulate(idx, out=idx)
-    return u[idx]
+def bsr_rest_state(q: ColumnParams, s, W, ds, first_pinned=None, sigma_width=0.01):
+    """The derived BSR's own rest state on the labels ``s``: the chain's rest map
+    (:func:`bsr_rest_map`) balances gravity exactly where every bond is present; within
+    one kernel width of the free top bonds above are missing, and the points there settle
+    to a(y) = 0, solved here (scipy.optimize.root). Pinned points keep the chain's rest."""
+    from scipy.optimize import root
+
+    s = np.asarray(s, dtype=np.float64)
+    Y0 = bsr_rest_map(q, s)
+    M = s.size
+    fp = M if first_pinned is None else int(first_pinned)
+    ng = W.size
+    yg = bsr_rest_map(q, -(np.arange(ng) + 0.5) * ds)
+    vg = np.zeros(ng)
+    v = np.zeros(M)
+    out = np.empty(M)
+    near_top = np.arange(M) < fp  # every free point: the settling reaches down the bonds
+
+    def resid(x):
+        y = Y0.copy()
+        y[near_top] = x
+        _bsr_accel(y, v, yg, vg, W, ds, q.g, q.e, sigma_width, fp, out)
+        return out[near_top] / q.g
+
+    sol = root(resid, Y0[near_top], method="hybr", options={"xtol": 1e-13})
+    y = Y0.copy()
+    y[near_top] = sol.x
+    if not np.max(np.abs(resid(sol.x))) < 1e-8:
+        from ..errors import SimulationError
+
+        raise SimulationError("column derived BSR: no rest state found", residual=sol.fun)
+    return y
+
+
+def _eulerian_density(y, ds, z):
+    """Linear density ρ(z) = ds/(y_{i+1} − y_i) of a Lagrangian map at the heights z, between
+    the lowest and the highest material point (0 elsewhere) [m/h]."""
+    ym = 0.5 * (y[1:] + y[:-1])
+    rho = ds / np.maximum(np.diff(y), 1e-12)
+    out = np.interp(z, ym, rho)
+    out[(z < y[0] - 0.5 * ds) | (z > y[-1] + 0.5 * ds)] = 0.0
+    return out
 
 
 def solve_bsr_derived(
     q: ColumnParams,
     t_end: float,
     *,
-    dz: float,
-    height: float | None = None,
-    cfl: float = 0.4,
+    ds: float,
+    kernel_width: float = BSR_KERNEL_WIDTH,
     top=None,
-    tracers=None,
     record_dt: float | None = None,
     sigma_width: float = 0.01,
-    hyper: float = 0.02,
+    cfl: float = 1.0,
+    density_dz: float = 0.125,
 ) -> dict:
     """Integrate the derived BSR model in chain units (docs/column.md, "BSR derived from
     the force law").
 
-    Eulerian finite volumes in the frame of the floor (height z − y0(t), velocity u − ẏ0),
-    where the floor is a fixed wall and the tap an extra body force −ÿ0 (plus the jumps of
-    ẏ0 at the start and end of each tap, Eq. 3, applied to the whole column): Eq. (46)'s
-    u(0, t) = ẏ0(t) at a fixed z = 0 would not let the floor lift the column. Linear density
-    ρ and momentum ρu: ρ_t + (ρu)_z = 0, (ρu)_t + (ρu²)_z = ρ f with f the source of
-    :func:`_bsr_derived_force` (this conservative form of u_t + u u_z = f keeps empty
-    cells from carrying momentum into the column); minmod MUSCL upwind fluxes with
-    mass-weighted face velocities, SSP-RK3, and a hyperviscosity −``hyper`` Δz³ ∂⁴u that
-    damps the grid-scale modes the nonlocal force cannot see (it vanishes like Δz³ for
-    resolved waves). Starts from the chain's rest state (:func:`rest_density`, u = 0).
-    Outputs are back in the lab frame.
+    Lagrangian material points at the labels s_i = (i + ½) ds of the column's mass
+    (s ∈ [0, N], particle k ↔ [k − 1, k]) move under :func:`_bsr_accel`: each pair of
+    material points at label separation Δ within the kernel interacts through the law
+    of Eq. (24) acting on its compression per unit label length. Below s = 0 ghost
+    material continues the rest map and rides with the floor (the chain's floor contact
+    is the bond to a ghost particle at y0 − r). Starts from the model's own rest state
+    (:func:`bsr_rest_state`); RK4 in time.
 
     Parameters
     ----------
-    q : ColumnParams in chain units; t_end, dz, height (default N + 4) likewise
-    top : (t, y_top, v_top), optional: the discrete top surface (hybrid treatment): no
-        elastic force above φ(t), the continuum's rest top shifted like the discrete one
-    tracers : initial heights of material points, dX/dt = u(X, t) (default: the
-        discrete rest positions of the N particles)
+    q : ColumnParams in chain units; t_end in sqrt(m/K)
+    ds : label spacing (h); 1/ds is rounded to an integer
+    kernel_width : half-width b of the triangular label kernel (0: point particles, the
+        chain on every sub-lattice of labels)
+    top : (t, y_top, v_top), optional: the discrete top surface (hybrid treatment); the
+        material of the top particle (labels in [N − 1, N]) moves with the discrete top
+        particle, rigidly. Without it the top is free.
     sigma_width : w_σ of σ(W) = tanh(W/w_σ) [units of h sqrt(K/m)]
+    density_dz : spacing of the heights at which the linear density is given
 
     Returns
     -------
-    dict as :func:`solve_bsr` (``collapse_time`` is NaN: this model holds the column up).
+    dict: ``s`` (M,) labels, ``t`` (n,), ``y`` (n, M) heights of the material points,
+    ``tracers`` (n, N) heights at the particle centres' labels k − ½, ``z`` (n_z,) heights and
+    ``rho`` (n, n_z) the linear density there [m/h], ``collapse_time`` NaN (the model
+    holds the column up), ``min_spacing`` the smallest y_{i+1} − y_i over the records in
+    units of ds (1 at no compression; ≤ 0: material points have passed each other, the map
+    is no longer a continuum — the kernel resists compression inside one particle only
+    weakly, docs/column.md).
     """
-    from .params import equilibrium_positions
-
     _require_dimensionless(q, "solve_bsr_derived")
-    Z = q.N + 4.0 if height is None else float(height)
-    n = int(round(Z / dz))
-    g = int(math.ceil(2.0 / dz))  # ghost cells: two spacings below the floor
-    zc = (np.arange(n) + 0.5) * dz
-    rho = rest_density(q, zc, dz)
-    mom = np.zeros(n)
-    phi = _TopBoundary(top, float(longwave_equilibrium(q, np.array([0.0, q.N]))[-1]))
-    X = np.array(equilibrium_positions(q) if tracers is None else tracers, dtype=np.float64)
+    K = max(1, int(round(1.0 / ds)))
+    ds = 1.0 / K
+    M = q.N * K
+    s = (np.arange(M) + 0.5) * ds
+    W = bsr_bond_weights(ds, kernel_width)
+    Yg = bsr_rest_map(q, -(np.arange(W.size) + 0.5) * ds)
+    hybrid = top is not None
+    first_pinned = int(np.searchsorted(s, q.N - 1.0)) if hybrid else M
+    Y = bsr_rest_state(q, s, W, ds, first_pinned, sigma_width)
+    V = np.zeros(M)
+    Ypin = Y[first_pinned:] - bsr_rest_map(q, q.N - 0.5)
+    if hybrid:
+        top_t = np.asarray(top[0], dtype=np.float64)
+        top_y = np.asarray(top[1], dtype=np.float64) - q.r  # the top particle's centre
+        top_v = np.asarray(top[2], dtype=np.float64)
+    else:
+        top_t, top_y, top_v = np.array([0.0, 1.0]), np.zeros(2), np.zeros(2)
     record_dt = record_dt or 0.01 * q.T
-    out_t = np.arange(int(math.floor(t_end / record_dt + 1e-9)) + 1) * record_dt
-    out_u = np.full((out_t.size, n), np.nan)
-    out_r = np.full((out_t.size, n), np.nan)
-    out_x = np.full((out_t.size, X.size), np.nan)
-    src = np.empty(n)
-    drho = np.empty(n)
-    dmom = np.empty(n)
-    vface = np.empty(n + 1)
-    rho_ext = np.empty(n + g)
-    u_ext = np.empty(n + g)
-    steps = np.arange(g, 0, -1, dtype=np.float64)  # ghost j sits j cells below cell 0
+    rec_t = np.arange(int(math.floor(t_end / record_dt + 1e-9)) + 1) * record_dt
+    out_y = np.full((rec_t.size, M), np.nan)
+    n, status, t_bad = _bsr_run(
+        Y, V, Yg, W, ds, q.g, q.e, float(sigma_width), q.a, q.omega, q.T, q.tap_duration,
+        float(t_end), rec_t, first_pinned, Ypin, top_t, top_y, top_v, float(cfl), out_y,
+    )  # fmt: skip
+    if status:
+        from ..errors import SimulationError
 
-    def rate(t, rr, mm, seg):
-        yb, _, ab = floor_state(q, t, seg[3], seg[2])
-        uu = _material_velocity(mm, rr)
-        rho_ext[g:] = rr
-        rho_ext[:g] = rr[0] + steps * (rr[0] - rr[1])
-        u_ext[g:] = uu
-        u_ext[:g] = 0.0
-        _bsr_derived_force(u_ext, rho_ext, dz, g, q.e, sigma_width, q.g + ab, phi(t) - yb, src)
-        w = rr[1:] + rr[:-1]
-        vface[1:-1] = np.where(
-            w > 0, (rr[1:] * uu[1:] + rr[:-1] * uu[:-1]) / np.where(w > 0, w, 1.0), 0.0
-        )
-        vface[0] = 0.0
-        vface[-1] = max(uu[-1], 0.0)
-        _transport_rate(rr, vface, dz, 0.0, True, drho)
-        _transport_rate(mm, vface, dz, 0.0, True, dmom)
-        # hyperviscosity −ν₄ ∂⁴u, ν₄ = c₄ Δz³: damps the grid-scale modes the nonlocal force
-        # cannot see (rate c₄ π⁴/Δz at k = π/Δz) and vanishes like Δz³k⁴ for resolved waves
-        up = np.concatenate([[0.0, 0.0], uu, [uu[-1], uu[-1]]])
-        d4 = (up[4:] - 4 * up[3:-1] + 6 * up[2:-2] - 4 * up[1:-3] + up[:-4]) / dz**4
-        return drho.copy(), dmom + rr * (src - hyper * dz**3 * d4), uu
-
-    def u_at(x, uu):
-        return np.interp(x, np.concatenate([[0.0], zc]), np.concatenate([[0.0], uu]))
-
-    i_rec = 0
-    v_before = 0.0
-    for seg in _segments(q, t_end):
-        t = seg[0]
-        y0, v0, _ = floor_state(q, t, seg[3], seg[2])
-        mom = mom - rho * (v0 - v_before)  # the floor's velocity jump (Eq. 3)
-        while True:
-            while i_rec < out_t.size and out_t[i_rec] <= t + 1e-12 * max(1.0, t):
-                y0, v0, _ = floor_state(q, t, seg[3], seg[2])
-                out_u[i_rec] = _material_velocity(mom, rho) + v0
-                out_r[i_rec], out_x[i_rec] = np.interp(zc - y0, zc, rho, left=0.0), X + y0
-                i_rec += 1
-            if seg[1] - t <= 1e-12 * max(1.0, t):
-                v_before = floor_state(q, seg[1], seg[3], seg[2])[1]
-                break
-            stop = seg[1]
-            if i_rec < out_t.size and out_t[i_rec] < stop:
-                stop = out_t[i_rec]
-            while stop - t > 1e-12 * max(1.0, t):
-                umax = float(np.max(np.abs(_material_velocity(mom, rho)))) + 1.0
-                # sound speed 1 and the viscosity e/w_σ of the smooth σ (chain units)
-                hs = min(cfl * dz / umax, cfl / (q.e / sigma_width + 1.0), stop - t)
-                k1r, k1m, uu0 = rate(t, rho, mom, seg)
-                x1 = X + hs * u_at(X, uu0)
-                r1, m1 = rho + hs * k1r, mom + hs * k1m
-                k2r, k2m, uu1 = rate(t + hs, r1, m1, seg)
-                x2 = 0.75 * X + 0.25 * (x1 + hs * u_at(x1, uu1))
-                r2 = 0.75 * rho + 0.25 * (r1 + hs * k2r)
-                m2 = 0.75 * mom + 0.25 * (m1 + hs * k2m)
-                k3r, k3m, uu2 = rate(t + hs / 2, r2, m2, seg)
-                X = X / 3 + 2 / 3 * (x2 + hs * u_at(x2, uu2))
-                rho = rho / 3 + 2 / 3 * (r2 + hs * k3r)
-                mom = mom / 3 + 2 / 3 * (m2 + hs * k3m)
-                t += hs
-                X = np.maximum(X, 0.0)
-                if not (np.all(np.isfinite(mom)) and np.all(np.isfinite(X))):
-                    from ..errors import SimulationError
-
-                    raise SimulationError("column derived BSR: non-finite solution", time=t, dz=dz)
+        raise SimulationError("column derived BSR: solution blew up", time=t_bad, ds=ds)
+    y = out_y[:n]
+    centres = np.arange(1, q.N + 1) - 0.5
+    tracers = np.array([np.interp(centres, s, row) for row in y])
+    z = (np.arange(int(round((q.N + 4.0) / density_dz))) + 0.5) * density_dz
     return {
-        "z": zc,
-        "t": out_t[:i_rec],
-        "u": out_u[:i_rec],
-        "rho": out_r[:i_rec],
-        "tracers": out_x[:i_rec],
+        "s": s,
+        "t": rec_t[:n],
+        "y": y,
+        "tracers": tracers,
+        "z": z,
+        "rho": np.array([_eulerian_density(row, ds, z) for row in y]),
+        "min_spacing": float(np.min(np.diff(y, axis=1))) / ds,
         "collapse_time": np.nan,
     }

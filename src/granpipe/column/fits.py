@@ -17,7 +17,7 @@ import xarray as xr
 from ..analysis.summary import summary_row
 from . import continuum as cont
 from .params import ColumnParams
-from .study import CONTINUUM_MODELS, MODEL_NAMES, TOP_TREATMENTS
+from .study import CONTINUUM_MODELS, MODEL_NAMES, SMOOTH_CHAIN, TOP_TREATMENTS
 
 __all__ = ["summary_rows", "theorem1_note", "continuum_rows", "continuum_note"]
 
@@ -383,6 +383,7 @@ def continuum_rows(comp: xr.Dataset, conv: xr.Dataset, length_unit: str) -> list
                 )
             )
         rows.append(summary_row("column", f"continuum_finest_refinement[model={model}]", k, "h/dz"))
+    rows += sigma_scan_rows(conv)
     for top in TOP_TREATMENTS:
         rows.append(
             summary_row(
@@ -398,6 +399,32 @@ def continuum_rows(comp: xr.Dataset, conv: xr.Dataset, length_unit: str) -> list
             summary_row("column", f"printed_eq35_wave_speed[units={system}]", speed, "h sqrt(K/m)")
         )
     return rows
+
+
+def _sigma_scan(conv: xr.Dataset):
+    """(model, top, w_σ, relative distance) of the convergence run's scan over w_σ."""
+    if "sigma_scan_relative_displacements" not in conv:
+        return []
+    da = conv["sigma_scan_relative_displacements"]
+    return [
+        (str(m), str(t), float(w), float(da.sel(scan_model=m, top=t, sigma_width=w)))
+        for m in da["scan_model"].values
+        for t in da["top"].values
+        for w in da["sigma_width"].values
+    ]
+
+
+def sigma_scan_rows(conv: xr.Dataset) -> list[dict]:
+    """Summary rows of the scan over the width w_σ of the smooth sign (docs/results.md)."""
+    return [
+        summary_row(
+            "column",
+            f"continuum_relative_displacements[model={m},top={t},sigma_width={w:g}]",
+            v,
+            "1",
+        )
+        for m, t, w, v in _sigma_scan(conv)
+    ]
 
 
 def printed_longwave_speeds(h: float, length_unit: str) -> dict:
@@ -451,6 +478,17 @@ def continuum_note(comp: xr.Dataset, conv: xr.Dataset, units: Mapping) -> list[s
             f"- Imposed by the hybrid top ({MODEL_NAMES[model]}): the distance is "
             f"{rel_h:.3g} of the discrete motion with it and {rel_f:.3g} with a free top."
         )
+    scan = _sigma_scan(conv)
+    if scan:
+        k = int(conv.attrs["sigma_scan_refinement"])
+        lines.append(
+            f"- Against the width w_σ of the smooth sign (L-W and derived BSR at h/{k}; the "
+            "chain with the same smooth sign is what the smoothing alone costs):"
+        )
+        for top in TOP_TREATMENTS:
+            for m in ("longwave", "bsr_derived", SMOOTH_CHAIN):
+                vals = [f"{v:.3g} (w_σ = {w:g})" for mm, t, w, v in scan if mm == m and t == top]
+                lines.append(f"  - {top} top, {MODEL_NAMES[m]}: " + ", ".join(vals))
     for top in TOP_TREATMENTS:
         ct = float(comp.attrs[f"bsr_collapse_time_{top}"])
         lines.append(

@@ -148,6 +148,7 @@ def continuum_params(cfg: Mapping, with_convergence: bool = False) -> dict:
     p = {
         "physics": c["physics"],
         "sigma_width": c.get("sigma_width", 0.01),
+        "bsr_kernel_width": c.get("bsr_kernel_width", 1.0),
         "step_factor": step_factor(cfg),
     }
     if with_convergence:
@@ -157,6 +158,8 @@ def continuum_params(cfg: Mapping, with_convergence: bool = False) -> dict:
             "bsr_refinements": [2, 4, 8, 16, 32],
             "bsr_t_end": 0.1,
             "bsr_derived_refinements": [2, 4, 8, 16, 32],
+            "sigma_widths": [0.01, 0.001, 0.0001],
+            "sigma_scan_refinement": 4,
             **c.get("convergence", {}),
         }
     else:

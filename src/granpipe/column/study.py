@@ -698,10 +698,17 @@ the BSR derived from the force law of Eq. (24) (docs/column.md)."""
 TOP_TREATMENTS = ("hybrid", "free")
 """``hybrid``: the continuum's top follows the discrete top (Section 4); ``free``: Φ = 0."""
 
+SMOOTH_CHAIN = "smooth_chain"
+"""The reference beside the continuum models: the discrete chain itself with the smooth
+sign σ(W) = tanh(W/w_σ) the continuum models need (the derived BSR with the point-particle
+kernel on the particles' own labels), so that a distance can be split into what the
+smoothing of the sign costs and what the continuum limit costs."""
+
 MODEL_NAMES = {
     "longwave": "long-wave (derived)",
     "bsr": "BSR (Eq. 45 as printed)",
     "bsr_derived": "BSR (derived)",
+    SMOOTH_CHAIN: "chain with the smooth sign",
 }
 
 
@@ -717,11 +724,12 @@ def _discrete_top(q, disc):
     return disc["t"], disc["y"][:, -1] + q.r, disc["v"][:, -1]
 
 
-def _solve_continuum(model, q, t_end, refinement, top, record_dt, sigma_width):
+def _solve_continuum(model, q, t_end, refinement, top, record_dt, sigma_width,
+                     kernel_width=cont.BSR_KERNEL_WIDTH):  # fmt: skip
     """Positions of the N particles in one continuum model, chain units: (t, (n_t, N), sol).
 
-    L-W: y(z_i, t) at the centre labels z_i = i − 1/2; BSR: tracers started at the
-    discrete rest positions.
+    L-W: y(z_i, t) at the centre labels z_i = i − 1/2; BSR as printed: tracers started at
+    the discrete rest positions; derived BSR: its material at the centre labels.
     """
     dz = 1.0 / refinement
     if model == "longwave":
@@ -735,8 +743,9 @@ def _solve_continuum(model, q, t_end, refinement, top, record_dt, sigma_width):
         y = sol["tracers"]
     elif model == "bsr_derived":
         sol = cont.solve_bsr_derived(
-            q, t_end, dz=dz, top=top, record_dt=record_dt, sigma_width=sigma_width
-        )
+            q, t_end, ds=dz, kernel_width=kernel_width, top=top, record_dt=record_dt,
+            sigma_width=sigma_width,
+        )  # fmt: skip
         y = sol["tracers"]
     else:
         raise ValueError(f"unknown continuum model {model!r}; known: {CONTINUUM_MODELS}")
@@ -774,6 +783,7 @@ def continuum_comparison(
     sigma_width: float = 0.01,
     step_factor: float = 0.1,
     bsr_derived_refinement: int = 8,
+    bsr_kernel_width: float = cont.BSR_KERNEL_WIDTH,
 ):
     """Discrete column and the continuum models with the hybrid and the free top.
 
@@ -798,8 +808,13 @@ def continuum_comparison(
     for model, k in refinements.items():
         for treat in TOP_TREATMENTS:
             runs[model, treat] = _solve_continuum(
-                model, q, t_end, k, top if treat == "hybrid" else None, rec, sigma_width
-            )
+                model, q, t_end, k, top if treat == "hybrid" else None, rec, sigma_width,
+                bsr_kernel_width,
+            )  # fmt: skip
+    for treat in TOP_TREATMENTS:
+        runs[SMOOTH_CHAIN, treat] = _solve_continuum(
+            "bsr_derived", q, t_end, 1, top if treat == "hybrid" else None, rec, sigma_width, 0.0
+        )
     t = runs["longwave", "hybrid"][0]
     yd = _on_records(disc, t, fine)
     lab = {"units": "h"}
@@ -844,6 +859,7 @@ def continuum_comparison(
         "lw_refinement": int(lw_refinement),
         "bsr_refinement": int(bsr_refinement),
         "bsr_derived_refinement": int(bsr_derived_refinement),
+        "bsr_kernel_width": float(bsr_kernel_width),
         "sigma_width": float(sigma_width),
         "N": q.N,
     }
@@ -853,6 +869,7 @@ def continuum_comparison(
         attrs[f"relative_displacements_{model}_{treat}"] = rel
     for treat in TOP_TREATMENTS:
         attrs[f"bsr_collapse_time_{treat}"] = float(runs["bsr", treat][2]["collapse_time"])
+        attrs[f"bsr_derived_min_spacing_{treat}"] = runs["bsr_derived", treat][2]["min_spacing"]
     ds = xr.Dataset(
         data,
         coords={
@@ -879,6 +896,9 @@ def continuum_convergence(
     sigma_width: float = 0.01,
     step_factor: float = 0.1,
     bsr_derived_refinements: Iterable[int] = (2, 4, 8, 16),
+    bsr_kernel_width: float = cont.BSR_KERNEL_WIDTH,
+    sigma_widths: Iterable[float] = (),
+    sigma_scan_refinement: int = 4,
 ):
     """Every model and both tops under grid refinement, in chain units.
 
@@ -887,6 +907,11 @@ def continuum_convergence(
     e_k = max over records and particles of |y(h/k) − y(h/2k)|, with observed orders
     log2(e_k / e_2k). ``t_end`` (L-W, derived BSR) and ``bsr_t_end`` (BSR as printed) are
     in the units of ``phys``; BSR as printed stops when it has collapsed.
+
+    The scan over ``sigma_widths`` solves L-W and the derived BSR at h/``sigma_scan_
+    refinement`` and the chain with the smooth sign (:data:`SMOOTH_CHAIN`) over ``t_end``
+    for each width w_σ: the distance of the smooth-sign chain is what the smoothing alone
+    costs, the rest of a model's distance is its continuum limit.
     """
     p = physics(phys)
     q = cont.dimensionless(p)
@@ -914,8 +939,9 @@ def continuum_convergence(
             ys = []
             for n, k in enumerate(ks[model]):
                 t, y, _ = _solve_continuum(
-                    model, q, ends[model], k, top if treat == "hybrid" else None, rec, sigma_width
-                )
+                    model, q, ends[model], k, top if treat == "hybrid" else None, rec,
+                    sigma_width, bsr_kernel_width,
+                )  # fmt: skip
                 yd = _on_records(disc, t, fine)
                 yy = np.full((int(round(ends[model] / rec)) + 1, q.N), np.nan)
                 yy[: y.shape[0]] = y[: yy.shape[0]]
@@ -954,7 +980,33 @@ def continuum_convergence(
         refine,
         {"units": "1", "long_name": "h / dz (-1: not run)"},
     )
-    attrs = {"t_end": ends["longwave"], "bsr_t_end": ends["bsr"], "sigma_width": sigma_width}
+    widths = [float(w) for w in sigma_widths]
+    scan_models = ("longwave", "bsr_derived", SMOOTH_CHAIN)
+    scan = np.full((len(scan_models), len(TOP_TREATMENTS), len(widths)), np.nan)
+    rec = ends["longwave"] / 100
+    for i, model in enumerate(scan_models):
+        for j, treat in enumerate(TOP_TREATMENTS):
+            for n, w in enumerate(widths):
+                args = (model, sigma_scan_refinement, bsr_kernel_width)
+                if model == SMOOTH_CHAIN:
+                    args = ("bsr_derived", 1, 0.0)
+                t, y, _ = _solve_continuum(
+                    args[0], q, ends["longwave"], args[1], top if treat == "hybrid" else None,
+                    rec, w, args[2],
+                )  # fmt: skip
+                scan[i, j, n] = _distance(y, _on_records(disc, t, fine)[: y.shape[0]])[2]
+    data["sigma_scan_relative_displacements"] = (
+        ("scan_model", "top", "sigma_width"),
+        scan,
+        {"units": "1", "long_name": "relative displacement distance against the width w_σ"},
+    )
+    attrs = {
+        "t_end": ends["longwave"],
+        "bsr_t_end": ends["bsr"],
+        "sigma_width": sigma_width,
+        "bsr_kernel_width": float(bsr_kernel_width),
+        "sigma_scan_refinement": int(sigma_scan_refinement),
+    }
     for (model, treat), o in orders.items():
         attrs[f"orders_{model}_{treat}"] = " ".join(f"{x:.3f}" for x in o)
     return xr.Dataset(
@@ -971,6 +1023,12 @@ def continuum_convergence(
                 {"units": "1", "long_name": "top boundary treatment"},
             ),
             "level": ("level", np.arange(n_k), {"units": "1", "long_name": "refinement level"}),
+            "scan_model": ("scan_model", list(scan_models), {"units": "1", "long_name": "model"}),
+            "sigma_width": (
+                "sigma_width",
+                widths,
+                {"units": "h sqrt(K/m)", "long_name": "width of the smooth sign"},
+            ),
         },
         attrs=attrs,
     )

@@ -275,7 +275,11 @@ def fig4_chaos_map(cmap_ds: xr.Dataset, length_unit: str = "m", time_unit: str =
 def fig5_continuum_convergence(conv: xr.Dataset):
     """Per model and top: successive differences and distance to the discrete column
     against h/Δz (chain units), with slope guides of order 1 and 2."""
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.5))
+    scan = conv.get("sigma_scan_relative_displacements")
+    fig, axes = plt.subplots(
+        1, 3 if scan is not None else 2, figsize=(18 if scan is not None else 12, 4.5)
+    )
+    ax, ax2 = axes[0], axes[1]
     styles = {"hybrid": "-", "free": ":"}
     for i, model in enumerate(conv["model"].values):
         ks = conv["refinement"].values[i]
@@ -306,6 +310,21 @@ def fig5_continuum_convergence(conv: xr.Dataset):
     ax2.set_yscale("log")
     ax2.set_title("distance to the discrete column under refinement", fontsize=9)
     ax2.legend(fontsize=7)
+    if scan is not None:
+        ax3 = axes[2]
+        w = scan["sigma_width"].values
+        for i, model in enumerate(scan["scan_model"].values):
+            for top in scan["top"].values:
+                ax3.loglog(w, scan.sel(scan_model=model, top=top).values, "o" + styles[top],
+                           color=f"C{i}", label=f"{model}, {top} top")  # fmt: skip
+        ax3.set_xlabel("width w_σ of the smooth sign  [h sqrt(K/m)]")
+        ax3.set_ylabel("RMS displacement distance / RMS discrete displacement")
+        ax3.set_title(
+            f"against w_σ (L-W, derived BSR at h/{conv.attrs['sigma_scan_refinement']});\n"
+            "smooth_chain: the discrete chain with that smooth sign",
+            fontsize=9,
+        )
+        ax3.legend(fontsize=7)
     fig.suptitle("Continuum models under refinement (Fig. 2 problem, chain units)")
     fig.tight_layout()
     return fig
