@@ -241,3 +241,31 @@ def test_stage_pipeline(tmp_path):
     fits_args += ["--out-nc", str(tmp_path / "f.nc"), "--out-note", str(tmp_path / "n.md")]
     swapped = ["--continuum", str(conv), "--convergence", str(comp)]
     refused([*fits_args, *swapped], r"convergence\.nc is not the expected input: attribute kind")
+
+
+def test_relaxation_ensemble_streams_to_the_pooled_moments():
+    """Batches merged one at a time (a generator) give the moments of all replicas pooled."""
+    import xarray as xr
+
+    from granpipe.column.study import relaxation_ensemble
+
+    rng = np.random.default_rng(3)
+    sizes = (3, 1, 4)
+    data = [rng.normal(1.0, 0.1, (n, 6)) for n in sizes]
+    data[2][1, 4] = np.nan  # a replica that stopped early
+
+    def batches():
+        for x in data:
+            yield xr.Dataset(
+                {"density": (("replica", "tap"), x), "height": (("replica", "tap"), 2 * x)},
+                coords={"tap": np.arange(6)},
+            )
+
+    ens = relaxation_ensemble(batches())
+    pooled = np.concatenate(data)
+    for name, k in (("density", 1), ("height", 2)):
+        np.testing.assert_allclose(ens[f"{name}_mean"], np.nanmean(k * pooled, axis=0), rtol=1e-13)
+        np.testing.assert_allclose(ens[f"{name}_std"], np.nanstd(k * pooled, axis=0, ddof=1),
+                                   rtol=1e-12)  # fmt: skip
+    np.testing.assert_array_equal(ens["count"], np.isfinite(pooled).sum(axis=0))
+    np.testing.assert_array_equal(ens["density_replicas"], pooled)

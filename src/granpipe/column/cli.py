@@ -264,10 +264,10 @@ def ensemble_cmd(params, kind, out, inputs):
     if kind == "relaxation":
         # one column, batches named as they hold, no replica twice
         check_run_files(inputs, study="column")
-    datasets = _inputs(inputs, "runs", kind)
-    if kind == "relaxation":
-        ds = relaxation_ensemble(datasets)
+    if kind == "relaxation":  # streamed: one batch file in memory at a time
+        ds = relaxation_ensemble(_inputs([p], "runs", kind)[0] for p in inputs)
     else:
+        datasets = _inputs(inputs, "runs", kind)
         _check_chaos_points(datasets, inputs)
         ds = chaos_map(datasets, float(params.get("confidence", 0.95)))
     _write(ds, out, params, stage="ensemble", kind=kind)

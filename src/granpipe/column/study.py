@@ -191,40 +191,43 @@ def relaxation_batch(
 
 
 def relaxation_ensemble(batches: Iterable[xr.Dataset]):
-    """Mean, standard deviation (spread), standard error and count per tap over replicas."""
-    batches_list = list(batches)
-    ds = xr.concat(batches_list, dim="replica")
+    """Mean, standard deviation (spread), standard error and count per tap over replicas.
+
+    Streams: each batch is merged into running moments (:class:`granpipe.analysis.
+    ensemble.EnsembleAccumulator`) and dropped, so ``batches`` may be a generator that
+    reads one file at a time. Only the per-replica density curves, (replica, tap), are
+    kept, for the relaxation fit's per-replica statistics.
+    """
+    from ..analysis.ensemble import EnsembleAccumulator
+
+    acc = {name: EnsembleAccumulator() for name in ("density", "height")}
+    rows, attrs, taps, phys = [], None, None, None
+    for b in batches:
+        for name, a in acc.items():
+            a.add(b[name], time_dim="tap")
+        rows.append(b["density"].transpose("replica", "tap"))
+        if attrs is None:
+            attrs, taps = dict(b.attrs), b["tap"]
+        phys = phys or config_from_attrs(b).get("physics")
+    if attrs is None:
+        raise ValueError("relaxation ensemble: no batch given")
     out = {}
     for name, unit in (("density", "mass/length"), ("height", "length")):
-        x = ds[name]
-        n = np.isfinite(x).sum("replica")
-        out[f"{name}_mean"] = (
-            ("tap",),
-            x.mean("replica").values,
-            {"units": unit, "long_name": f"ensemble mean {name}"},
-        )
+        a = acc[name]
+        out[f"{name}_mean"] = ("tap", a.mean, {"units": unit, "long_name": f"ensemble mean {name}"})
         out[f"{name}_std"] = (
-            ("tap",),
-            x.std("replica", ddof=1).values,
+            "tap",
+            a.std,
             {"units": unit, "long_name": f"replica spread (standard deviation) of {name}"},
         )
         out[f"{name}_sem"] = (
-            ("tap",),
-            (x.std("replica", ddof=1) / np.sqrt(n)).values,
+            "tap",
+            a.sem,
             {"units": unit, "long_name": f"standard error of the mean {name}"},
         )
-    out["count"] = (
-        ("tap",),
-        np.isfinite(ds["density"]).sum("replica").values.astype(np.int64),
-        {"units": "1", "long_name": "replicas"},
-    )
-    res = xr.Dataset(out, coords={"tap": ds["tap"]}, attrs=dict(ds.attrs))
-    res["density_replicas"] = ds["density"]
-    phys = None
-    for b in batches_list:
-        phys = config_from_attrs(b).get("physics")
-        if phys:
-            break
+    out["count"] = ("tap", acc["density"].count, {"units": "1", "long_name": "replicas"})
+    res = xr.Dataset(out, coords={"tap": taps}, attrs=attrs)
+    res["density_replicas"] = xr.concat(rows, dim="replica")
     if phys:
         res.attrs.update(stick_band_densities(physics(phys)))
     return res
