@@ -306,6 +306,33 @@ def _lw_set_ends(t, Y, V, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v):
 
 
 @njit
+def _drive_segment(t, T, dur, A, eps):
+    """(tap start, in_tap, end) of the floor's smooth piece that contains time t."""
+    kk = math.floor((t + eps) / T)
+    ts = kk * T
+    in_tap = A > 0.0 and t + eps < ts + dur
+    return ts, in_tap, (ts + dur if in_tap else (kk + 1) * T)
+
+
+@njit
+def _next_stop(seg_end, t_end, rec_t, i_rec):
+    """End of the next run of steps: the segment's end, t_end or the next record."""
+    stop = min(seg_end, t_end)
+    if i_rec < rec_t.size and rec_t[i_rec] < stop:
+        stop = rec_t[i_rec]
+    return stop
+
+
+@njit
+def _max_compression(Y, spacing):
+    """Largest compression 1 − (Y[j+1] − Y[j])/spacing of neighbouring nodes (≥ 0)."""
+    cmax = 0.0
+    for j in range(Y.size - 1):
+        cmax = max(cmax, 1.0 - (Y[j + 1] - Y[j]) / spacing)
+    return cmax
+
+
+@njit
 def _lw_run(
     Y, V, dz, G, e, w_sigma, A, Om, T, dur, t_end, rec_t, hybrid, top_t, top_y, top_v,
     top_a, cfl, out_y, out_v,
@@ -338,10 +365,7 @@ def _lw_run(
     vmax0 = 1.0 + A * Om
     eps = 1e-12 * max(1.0, t_end)
     while True:
-        kk = math.floor((t + eps) / T)
-        ts = kk * T
-        in_tap = A > 0.0 and t + eps < ts + dur
-        seg_end = ts + dur if in_tap else (kk + 1) * T
+        ts, in_tap, seg_end = _drive_segment(t, T, dur, A, eps)
         _lw_set_ends(t, Y, V, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
         while i_rec < nrec and rec_t[i_rec] <= t + eps:
             out_y[i_rec] = Y
@@ -349,13 +373,9 @@ def _lw_run(
             i_rec += 1
         if t >= t_end - eps:
             return i_rec, 0, t
-        stop = min(seg_end, t_end)
-        if i_rec < nrec and rec_t[i_rec] < stop:
-            stop = rec_t[i_rec]
+        stop = _next_stop(seg_end, t_end, rec_t, i_rec)
         while stop - t > eps:
-            cmax = 0.0
-            for j in range(n - 1):
-                cmax = max(cmax, 1.0 - (Y[j + 1] - Y[j]) / dz)
+            cmax = _max_compression(Y, dz)
             hs = min(stop - t, cfl / (wave + 12.0 * e * cmax / w_sigma))
             at = np.interp(t, top_t, top_a) if hybrid else 0.0
             a0 = _lw_set_ends(t, Y, V, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
@@ -902,10 +922,7 @@ def _bsr_run(
     t = 0.0
     eps = 1e-12 * max(1.0, t_end)
     while True:
-        kk = math.floor((t + eps) / T)
-        ts = kk * T
-        in_tap = A > 0.0 and t + eps < ts + dur
-        seg_end = ts + dur if in_tap else (kk + 1) * T
+        ts, in_tap, seg_end = _drive_segment(t, T, dur, A, eps)
         _bsr_set_bounds(t, Y, V, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin, top_t,
                         top_y, top_v)  # fmt: skip
         while i_rec < nrec and rec_t[i_rec] <= t + eps:
@@ -913,14 +930,10 @@ def _bsr_run(
             i_rec += 1
         if t >= t_end - eps:
             return i_rec, 0, t
-        stop = min(seg_end, t_end)
-        if i_rec < nrec and rec_t[i_rec] < stop:
-            stop = rec_t[i_rec]
+        stop = _next_stop(seg_end, t_end, rec_t, i_rec)
         while stop - t > eps:
-            cmax = 0.0
-            for i in range(M - 1):
-                cmax = max(cmax, 1.0 - (Y[i + 1] - Y[i]) / ds)
-            hs = min(stop - t, cfl / (wave + 2.0 * e * max(cmax, 0.0) * s2 / w_sigma))
+            cmax = _max_compression(Y, ds)
+            hs = min(stop - t, cfl / (wave + 2.0 * e * cmax * s2 / w_sigma))
             _bsr_set_bounds(t, Y, V, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
                             top_t, top_y, top_v)  # fmt: skip
             _bsr_accel(Y, V, yg, vg, W, ds, G, e, w_sigma, first_pinned, k1)
