@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from granpipe.box import model, prepare, protocol
+from granpipe.box import model, preparation, protocol
 
 PHYSICS = dict(
     Lx=20.0, kappa_n=1e6, kappa_t=1e4, gamma_n=100.0, gamma_t=100.0, mu=0.6, mu_bottom=0.6,
@@ -45,7 +45,7 @@ INIT = dict(
 
 
 def cost(n_ls=(10, 20), gamma=2.0, steps=30000):
-    from granpipe.box.prepare import box_simulation, disk_arrays
+    from granpipe.box.preparation import box_simulation, disk_arrays
     from granpipe.box.protocol import _walls
 
     proto = dict(start_phase="sine", ramp_periods=0.0, transient_periods=0, phases_per_period=64)
@@ -55,7 +55,7 @@ def cost(n_ls=(10, 20), gamma=2.0, steps=30000):
           f"{model.contact_time(PHYSICS) / dt:.3f})")  # fmt: skip
     for n_l in n_ls:
         n = 20 * n_l
-        prep = prepare.prepare(PHYSICS, INIT, n, "crystal", np.random.default_rng(1))
+        prep = preparation.prepare(PHYSICS, INIT, n, "crystal", np.random.default_rng(1))
         sim = box_simulation(PHYSICS, dt, _walls(PHYSICS, drive))
         radii, masses = disk_arrays(n)
         st = sim.new_state(prep.positions, radii, masses)
@@ -89,7 +89,7 @@ def hazards(gamma=1.5, n_l=10, transient=6, only=None):
     for kind, rows, phase, ramp, mu_side in cases:
         phys = {**PHYSICS, "mu_side_walls": mu_side}
         init = {**INIT, "crystal_rows": rows}
-        prep = prepare.prepare(phys, init, 20 * n_l, kind, np.random.default_rng(3))
+        prep = preparation.prepare(phys, init, 20 * n_l, kind, np.random.default_rng(3))
         proto = dict(
             start_phase=phase, ramp_periods=ramp, transient_periods=transient,
             phases_per_period=64,
@@ -103,8 +103,8 @@ def hazards(gamma=1.5, n_l=10, transient=6, only=None):
         print(
             f"{kind:8s} {rows:9s} {phase:11s} {ramp:4.1f} {mu_side:7.1f} | "
             f"{tr['vz_cm'].max() / aw:7.2f} {tr['max_vz'].max() / aw:9.2f} | "
-            f"{prepare.bulk_psi6(prep.positions, 20.0):.3f} "
-            f"{prepare.bulk_psi6(res.cycle_positions[0].astype(float), 20.0):.3f}"
+            f"{preparation.bulk_psi6(prep.positions, 20.0):.3f} "
+            f"{preparation.bulk_psi6(res.cycle_positions[0].astype(float), 20.0):.3f}"
         )
 
 
@@ -122,12 +122,12 @@ CRYSTAL_CASES = [
 
 
 def _crystal_case(args):
-    from granpipe.analysis import box as ab
+    from granpipe.box import measures
 
     (rows, phase, ramp, transient, mu_w), gamma, n_l, periods = args
     phys = {**PHYSICS, "mu_side_walls": mu_w}
     init = {**INIT, "crystal_rows": rows, "crystal_relax_time": 2.0}
-    prep = prepare.prepare(phys, init, 20 * n_l, "crystal", np.random.default_rng(3))
+    prep = preparation.prepare(phys, init, 20 * n_l, "crystal", np.random.default_rng(3))
     proto = dict(
         start_phase=phase, ramp_periods=ramp, transient_periods=transient, phases_per_period=8
     )  # fmt: skip
@@ -135,7 +135,9 @@ def _crystal_case(args):
         phys, proto, gamma, 0, range(periods), start_positions=prep.positions,
         start_velocities=prep.velocities, start_spins=prep.spins,
     )  # fmt: skip
-    checks = [ab.crystal_check(res.cycle_positions[i].astype(float), 20.0) for i in (0, periods)]
+    checks = [
+        measures.crystal_check(res.cycle_positions[i].astype(float), 20.0) for i in (0, periods)
+    ]
     return (rows, phase, ramp, transient, mu_w, gamma, checks, res.wall_seconds)
 
 
@@ -161,7 +163,7 @@ def _convergence_case(args):
     from granpipe.box import measures
 
     kind, gamma, n_l, periods = args
-    prep = prepare.prepare(PHYSICS, {**INIT, "crystal_relax_time": 2.0}, 20 * n_l, kind,
+    prep = preparation.prepare(PHYSICS, {**INIT, "crystal_relax_time": 2.0}, 20 * n_l, kind,
                            np.random.default_rng(3))  # fmt: skip
     proto = dict(start_phase="sine", ramp_periods=2.0, transient_periods=6, phases_per_period=64)
     res = protocol.run_part(

@@ -80,7 +80,7 @@ def test_results_dataset_is_writable(tmp_path):
 
 def test_regression_and_threshold_rows_fit_the_summary():
     from granpipe.analysis.regression import arrhenius_fit, segmented_fit
-    from granpipe.analysis.thresholds import threshold_crossing
+    from granpipe.box.fits import threshold_crossing
 
     x = np.log(np.geomspace(0.5, 20, 12))
     seg = segmented_fit(x, 1.0 + x + 1.2 * np.maximum(x - np.log(3.3), 0) + 0.01 * np.sin(7 * x), 1)

@@ -8,8 +8,7 @@ parts that do not continue exactly, a blow-up without its context.
 import numpy as np
 import pytest
 
-from granpipe.analysis import box as ab
-from granpipe.box import prepare, protocol, stages
+from granpipe.box import measures, preparation, protocol, stages
 from granpipe.errors import SimulationError
 
 from .conftest import INIT, PHYSICS, PROTOCOL
@@ -20,18 +19,18 @@ WIDE = {**PHYSICS, "Lx": 20.0}
 @pytest.fixture(scope="module")
 def crystal_small():
     """A relaxed spanning crystal of 33 disks in Lx = 6 (rows 6/5, six rows)."""
-    return prepare.prepare(PHYSICS, INIT, 33, "crystal", np.random.default_rng(0))
+    return preparation.prepare(PHYSICS, INIT, 33, "crystal", np.random.default_rng(0))
 
 
 def test_settled_crystal_is_hexagonal_and_random_packing_is_not():
     rng = np.random.default_rng(11)
-    crystal = prepare.prepare(WIDE, INIT, 200, "crystal", rng)
-    random = prepare.prepare(WIDE, INIT, 200, "random", np.random.default_rng(11))
+    crystal = preparation.prepare(WIDE, INIT, 200, "crystal", rng)
+    random = preparation.prepare(WIDE, INIT, 200, "random", np.random.default_rng(11))
     assert random.settled and random.kinetic_energy < INIT["settle_kinetic_energy"]
-    psi_c = prepare.bulk_psi6(crystal.positions, 20.0)
-    psi_r = prepare.bulk_psi6(random.positions, 20.0)
-    hex_c = np.mean(ab.local_order(crystal.positions)["order"] == 1)
-    hex_r = np.mean(ab.local_order(random.positions)["order"] == 1)
+    psi_c = preparation.bulk_psi6(crystal.positions, 20.0)
+    psi_r = preparation.bulk_psi6(random.positions, 20.0)
+    hex_c = np.mean(measures.local_order(crystal.positions)["order"] == 1)
+    hex_r = np.mean(measures.local_order(random.positions)["order"] == 1)
     assert psi_c > 0.999
     assert hex_c > 0.98  # all but the two bottom corners
     assert psi_r < 0.97
@@ -47,8 +46,8 @@ def _run(physics, gamma, start, periods=range(2), proto=PROTOCOL):
 
 def test_frictionless_walls_below_g_bed_moves_rigidly_with_the_plate(crystal_small):
     res = _run({**PHYSICS, "mu_side_walls": 0.0}, 0.7, crystal_small)
-    s_b, s_k = ab.bouncing_measure(res.z_tracers, res.z_plate)
-    detach, _ = ab.detachment_fraction(res.bed_gap)
+    s_b, s_k = measures.bouncing_measure(res.z_tracers, res.z_plate)
+    detach, _ = measures.detachment_fraction(res.bed_gap)
     assert s_b < 1e-3  # the tracers keep their height above the plate to 1e-3 σ
     assert detach == 0.0 and res.bed_gap.max() < 1e-4
     assert res.granular_temperature.mean() < 1e-6
@@ -57,8 +56,8 @@ def test_frictionless_walls_below_g_bed_moves_rigidly_with_the_plate(crystal_sma
 
 def test_frictionless_walls_at_two_g_bed_leaves_the_plate_every_cycle(crystal_small):
     res = _run({**PHYSICS, "mu_side_walls": 0.0}, 2.0, crystal_small)
-    s_b, _ = ab.bouncing_measure(res.z_tracers, res.z_plate)
-    detach, per_cycle = ab.detachment_fraction(res.bed_gap)
+    s_b, _ = measures.bouncing_measure(res.z_tracers, res.z_plate)
+    detach, per_cycle = measures.detachment_fraction(res.bed_gap)
     assert s_b > 1.0 / 30.0
     assert np.all(per_cycle > 0.2)  # in flight for a good part of every cycle
     assert res.bed_gap.max() > 0.5

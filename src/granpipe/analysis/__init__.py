@@ -1,4 +1,5 @@
-"""granpipe.analysis: ensemble reduction, smoothing, fits, bootstrap, regression.
+"""granpipe.analysis: what every study uses — ensemble reduction, smoothing, bootstrap,
+regression, summary rows. Study-specific measures and fits live in the study's package.
 
 Plain numpy / xarray in, labelled results out; nothing here knows the engine.
 Import from the submodules (this package imports nothing, so that loading one
@@ -8,7 +9,5 @@ submodule does not pull in freud or pandas):
 - :mod:`.smoothing` — moving average λ̄ (drum Eq. 2), FFT low-pass.
 - :mod:`.fits` — onset / sign-change / lag fits with fit errors and bootstrap CIs.
 - :mod:`.summary` — ``summary.csv`` rows and atomic writes.
-- :mod:`.box` — tracers, s_c, s_b, detachment, T_g, slips, ψ6/ψ4 (box App. B, Eq. 2).
 - :mod:`.regression` — segmented log–log regression, Arrhenius fits.
-- :mod:`.thresholds` — thresholds in Γ on a grid.
 """

@@ -642,7 +642,7 @@ def arrhenius_fit(
     K_m : (n,) float [1]
     p_s : (n,) float, slip probability per period; default n_slips / n_trials
     n_slips, n_trials : (n,) int, optional
-        Total slips and bulk particle-periods (:class:`granpipe.analysis.box.SlipResult`).
+        Total slips and bulk particle-periods (:class:`granpipe.box.measures.SlipResult`).
         Needed for the zero-count bounds and for ``method="poisson"``.
     p_s_sem : (n,) float, optional
         Standard error of p_s (e.g. from the scatter over periods, which includes

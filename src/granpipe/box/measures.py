@@ -1,7 +1,29 @@
-"""Per-point measures of the box study: detection, temperature, slips, order.
+"""Measures of the box study: detection, temperature, slips, order, and their pooling.
 
-The glue between run files and :mod:`granpipe.analysis.box`: concatenates the parts of
-each replica, applies Appendix B (s_c, corrected s_b), the direct detachment measure,
+Fortini & Huang (2015), Appendix B and Sec. V, with the corrections of docs/box.md. On
+given arrays (geometry only, no simulation):
+
+* :func:`select_tracers` — the N_t particles of the row closest to mid-height of
+  the bed at the start (the paper's horizontal line of tracers).
+* :func:`convection_measure` — s_c of Eqs. (B1)–(B2); convection when s_c > σ.
+* :func:`bouncing_measure` — s_b with our correction, docs/box.md of Eq. (B4): s(k) of
+  Eq. (B3), then s_b² = mean_k (s(k) − mean_k s)²; bouncing bed when s_b > σ/30.
+* :func:`bed_gap`, :func:`detachment_fraction` — the direct measure: fraction of
+  the cycle during which the lowest grain is above the plate.
+* :func:`granular_temperature` — Eq. (2).
+* :func:`slip_flags`, :func:`slip_probability` — slips of bulk particles per
+  period (Sec. V and note [36]).
+* :func:`bond_order`, :func:`local_order`, :func:`classify_order` — ψ6 and ψ4
+  per particle (freud), hexagonal / square / disordered (Fig. 1).
+* :func:`bulk_mask`, :func:`delaunay_coordination`, :func:`crystal_check` — is a crystal
+  start still a defect-free crystal: bulk |ψ6|, hexagonal fraction and dislocations
+  (bulk disks with other than six Delaunay neighbours).
+
+Coordinates: positions are (N, 2) arrays of (x, z) [σ], z upwards; heights of
+the plate z_b [σ].
+
+Per point (:func:`point_dataset`, from the run files): concatenates the parts of each
+replica, applies Appendix B (s_c, corrected s_b), the direct detachment measure,
 Eq. (2) and the slip criterion of Sec. V, and pools the replicas of a point.
 
 Pooling: T_g and p_s are averaged over all measured periods of all replicas, their
@@ -14,15 +36,577 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
+from scipy.spatial import cKDTree
 
-from ..analysis import box as ab
+__all__ = [
+    "free_surface_height",
+    "select_tracers",
+    "convection_measure",
+    "bouncing_measure",
+    "bed_gap",
+    "detachment_fraction",
+    "granular_temperature",
+    "nearest_neighbours",
+    "slip_flags",
+    "SlipResult",
+    "slip_probability",
+    "bond_order",
+    "local_order",
+    "classify_order",
+    "ORDER_LABELS",
+    "bulk_mask",
+    "delaunay_coordination",
+    "CrystalCheck",
+    "crystal_check",
+    "CONVECTION_THRESHOLD",
+    "BOUNCING_THRESHOLD",
+    "ReplicaRun",
+    "concat_parts",
+    "point_dataset",
+    "convergence",
+]
 
-__all__ = ["ReplicaRun", "concat_parts", "point_dataset", "convergence"]
+#: s_c > σ: convection (Appendix B), in units of σ.
+CONVECTION_THRESHOLD = 1.0
+#: s_b > σ/30: bouncing bed (Appendix B), in units of σ.
+BOUNCING_THRESHOLD = 1.0 / 30.0
 
 
+# ------------------------------------------------------------------ geometry
+def free_surface_height(positions: np.ndarray, sigma: float = 1.0, *, fraction: float = 0.5):
+    """Height [σ] of the free surface of a bed: the top of its dense part.
+
+    Parameters
+    ----------
+    positions : (N, 2) float [σ], columns (x, z)
+    fraction : float
+        Heights are binned in slabs of thickness σ; the bulk density is the
+        median count of the slabs below the median particle height. Going up
+        from there, the first slab holding fewer than ``fraction`` × bulk marks
+        the end of the bed; the surface is the highest particle centre below it.
+
+    A few grains flying above the bed (high K_m) do not move the surface, unlike
+    ``max(z)``. For a crystal it is the centre height of the top row.
+    """
+    z = np.asarray(positions, dtype=np.float64)[:, 1]
+    z0 = z.min()
+    nb = int(np.floor((z.max() - z0) / sigma)) + 1
+    idx = np.minimum(((z - z0) / sigma).astype(np.int64), nb - 1)
+    counts = np.bincount(idx, minlength=nb)
+    mid_bin = int((np.median(z) - z0) / sigma)
+    bulk = np.median(counts[: mid_bin + 1])
+    sparse = np.nonzero((counts < fraction * bulk) & (np.arange(nb) > mid_bin))[0]
+    top_bin = sparse[0] if sparse.size else nb
+    return float(z[idx < top_bin].max())
+
+
+def select_tracers(
+    positions: np.ndarray,
+    sigma: float = 1.0,
+    *,
+    row_tol: float = 0.5,
+    mid_height: float | None = None,
+    n_tracers: int | None = None,
+) -> np.ndarray:
+    """Indices of the tracer row: the particles of the row closest to mid-height.
+
+    Parameters
+    ----------
+    positions : (N, 2) float [σ], the bed at the start of the measurement
+    row_tol : float
+        A particle belongs to the row if its height is within ``row_tol``·σ of the
+        row height (the median height of the members, iterated from the particle
+        closest to ``mid_height``). σ/2 separates the rows of a hexagonal
+        crystal (spacing √3σ/2) and groups the wavy rows of a random packing.
+    mid_height : float, optional
+        Default: halfway between the lowest particle centre and the free surface
+        (:func:`free_surface_height`).
+    n_tracers : int, optional
+        Keep only the ``n_tracers`` members closest to the row height.
+
+    Returns
+    -------
+    (N_t,) int, sorted by x.
+    """
+    pos = np.asarray(positions, dtype=np.float64)
+    z = pos[:, 1]
+    if mid_height is None:
+        mid_height = 0.5 * (z.min() + free_surface_height(pos, sigma))
+    z_row = z[np.argmin(np.abs(z - mid_height))]
+    for _ in range(5):
+        member = np.abs(z - z_row) < row_tol * sigma
+        new = float(np.median(z[member]))
+        if new == z_row:
+            break
+        z_row = new
+    idx = np.nonzero(np.abs(z - z_row) < row_tol * sigma)[0]
+    if n_tracers is not None and len(idx) > n_tracers:
+        idx = idx[np.argsort(np.abs(z[idx] - z_row), kind="stable")[:n_tracers]]
+    return idx[np.argsort(pos[idx, 0], kind="stable")]
+
+
+# ----------------------------------------------------------------- detection
+def convection_measure(z_tracers: np.ndarray) -> tuple[float, np.ndarray]:
+    """s_c of Eqs. (B1)–(B2) from tracer heights at the start of each cycle.
+
+    Parameters
+    ----------
+    z_tracers : (n_cycles, N_t) float [σ]
+        z_j^i, tracer i at the start of cycle j. NaN entries are ignored.
+
+    Returns
+    -------
+    s_c : float [σ], with s_c² = (1/N_f) Σ_j s_j²; convection when s_c > σ
+    s_j : (n_cycles,) float [σ], s_j² = (1/N_t) Σ_i (z_j^i − ⟨z_j⟩)² (Eq. B1, ddof 0)
+    """
+    z = np.asarray(z_tracers, dtype=np.float64)
+    if z.ndim != 2:
+        raise ValueError("z_tracers must be (n_cycles, N_t)")
+    s_j2 = np.nanvar(z, axis=1)
+    return float(np.sqrt(np.nanmean(s_j2))), np.sqrt(s_j2)
+
+
+def bouncing_measure(z_tracers: np.ndarray, z_plate: np.ndarray) -> tuple[float, np.ndarray]:
+    """s_b: spread over the phases of the tracers' mean height above the plate.
+
+    Parameters
+    ----------
+    z_tracers : (n_cycles, n_phases, N_t) float [σ]
+        z_j^i(k): tracer i at phase k of cycle j (phases sampled uniformly).
+    z_plate : (n_cycles, n_phases) or (n_phases,) float [σ]
+        z_b(k), the plate height at the same instants.
+
+    Returns
+    -------
+    s_b : float [σ]
+        s_b² = (1/N_k) Σ_k (s(k) − s̄)², s̄ = mean_k s(k). This is docs/box.md's
+        correction: Eq. (B4) as printed, (1/N_k) Σ_k s²(k), is the mean *square*
+        height of the tracers above the plate (≈ (N_l σ/2)²) and always exceeds
+        (σ/30)². A bed comoving with the plate has s(k) constant and s_b = 0.
+        Bouncing bed when s_b > σ/30.
+    s_k : (n_phases,) float [σ], s(k) of Eq. (B3)
+    """
+    z = np.asarray(z_tracers, dtype=np.float64)
+    zb = np.asarray(z_plate, dtype=np.float64)
+    if z.ndim != 3:
+        raise ValueError("z_tracers must be (n_cycles, n_phases, N_t)")
+    if zb.ndim == 1:
+        zb = np.broadcast_to(zb, z.shape[:2])
+    height = np.nanmean(z, axis=2) - zb  # ⟨z_j(k)⟩ − z_b(k), (n_cycles, n_phases)
+    s_k = np.nanmean(height, axis=0)
+    return float(np.sqrt(np.mean((s_k - s_k.mean()) ** 2))), s_k
+
+
+def bed_gap(z: np.ndarray, z_plate: np.ndarray, sigma: float = 1.0) -> np.ndarray:
+    """Gap under the bed [σ]: lowest particle bottom minus plate height.
+
+    Parameters
+    ----------
+    z : (..., N) float [σ], particle centre heights (any leading shape, e.g.
+        (n_cycles, n_phases, N))
+    z_plate : (...) float [σ], plate height at the same instants
+
+    Returns (...) float: min_i z_i − σ/2 − z_b; negative while a grain touches
+    the plate (overlap), positive when the whole bed is in flight.
+    """
+    return np.min(np.asarray(z, dtype=np.float64), axis=-1) - 0.5 * sigma - np.asarray(z_plate)
+
+
+def detachment_fraction(gap: np.ndarray, tol: float = 1e-3) -> tuple[float, np.ndarray]:
+    """Fraction of the cycle with a gap under the bed (docs/box.md, hazard iii).
+
+    Parameters
+    ----------
+    gap : (n_cycles, n_phases) float [σ], from :func:`bed_gap`, phases sampled
+        uniformly over each cycle
+    tol : float [σ]
+        A phase counts as detached when gap > tol. Default 1e-3σ: ten times the
+        static overlap of the bottom row under the heaviest bed (N_l = 80:
+        80 mg/κ_n = 8e-5σ) so that contact jitter is not flight, and thirty times
+        below the σ/30 criterion of s_b.
+
+    Returns
+    -------
+    fraction : float in [0, 1], mean over cycles
+    per_cycle : (n_cycles,) float
+    """
+    g = np.atleast_2d(np.asarray(gap, dtype=np.float64))
+    per_cycle = np.mean(g > tol, axis=-1)
+    return float(per_cycle.mean()), per_cycle
+
+
+# -------------------------------------------------------------- observables
+def granular_temperature(velocities: np.ndarray, mass: float | np.ndarray = 1.0) -> np.ndarray:
+    """Instantaneous granular temperature of Eq. (2), one value per frame.
+
+    Parameters
+    ----------
+    velocities : (n_frames, N, 2) or (N, 2) float [σ/t0]
+    mass : float or (N,) [m]
+
+    Returns
+    -------
+    (n_frames,) or scalar float [m g σ]:
+        (1/N) Σ_i ½ m_i |v_i − v_cm|², v_cm the mass-weighted mean velocity. The
+        paper's T_g is the time average ⟨·⟩ of this (take ``.mean()`` over frames
+        sampled uniformly in time); T_g* = T_g/(mgσ) equals it in reduced units.
+    """
+    v = np.asarray(velocities, dtype=np.float64)
+    m = np.broadcast_to(np.asarray(mass, dtype=np.float64), v.shape[-2])
+    v_cm = np.einsum("i,...ij->...j", m, v) / m.sum()
+    dv = v - v_cm[..., np.newaxis, :]
+    return 0.5 * np.einsum("i,...ij,...ij->...", m, dv, dv) / v.shape[-2]
+
+
+def nearest_neighbours(
+    positions: np.ndarray, n_neighbours: int = 6, r_max: float = 1.2
+) -> np.ndarray:
+    """Nearest neighbours within ``r_max``, non-periodic (scipy cKDTree).
+
+    Returns (N, n_neighbours) int indices, nearest first, padded with -1 where a
+    particle has fewer than ``n_neighbours`` within ``r_max`` [σ].
+    """
+    pos = np.asarray(positions, dtype=np.float64)
+    tree = cKDTree(pos)
+    k = min(n_neighbours + 1, len(pos))
+    dist, idx = tree.query(pos, k=k, distance_upper_bound=r_max)
+    idx = np.where(np.isfinite(dist), idx, -1)[:, 1:]  # column 0 is the particle itself
+    if idx.shape[1] < n_neighbours:
+        idx = np.pad(idx, ((0, 0), (0, n_neighbours - idx.shape[1])), constant_values=-1)
+    return idx
+
+
+def slip_flags(
+    start: np.ndarray,
+    end: np.ndarray,
+    *,
+    neighbours: np.ndarray | None = None,
+    n_neighbours: int = 6,
+    r_max: float = 1.2,
+    threshold: float = 0.2,
+    min_count: int = 2,
+    bulk_depth: float = 10.0,
+    free_surface: float | None = None,
+    sigma: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Which bulk particles slipped over one period (Sec. V, note [36]).
+
+    Parameters
+    ----------
+    start, end : (N, 2) float [σ]
+        Positions at the start and end of the period (same phase).
+    neighbours : (N, k) int, optional
+        Nearest neighbours at the start (-1 padded); default
+        :func:`nearest_neighbours` (up to ``n_neighbours`` within ``r_max``·σ).
+    threshold : float
+        A neighbour j counts when the separation vector changes by more than
+        ``threshold``·σ: |(r_j − r_i)_end − (r_j − r_i)_start| > 0.2σ.
+    min_count : int
+        Particle i slips when at least ``min_count`` (2) neighbours count.
+    bulk_depth : float
+        Bulk = centre more than ``bulk_depth``·σ (10σ) below the free surface
+        at the start (:func:`free_surface_height` unless ``free_surface`` given).
+
+    Returns
+    -------
+    slipped : (N,) bool, False outside the bulk
+    bulk : (N,) bool
+
+    Notes
+    -----
+    The criterion is on separation *vectors*, as the paper words it, so a uniform
+    translation never slips, but a rigid rotation by θ changes each vector by
+    2|r| sin(θ/2) ≈ σθ and counts once θ > ~0.2 rad (impossible for a bed held
+    between side walls).
+    """
+    a = np.asarray(start, dtype=np.float64)
+    b = np.asarray(end, dtype=np.float64)
+    if neighbours is None:
+        neighbours = nearest_neighbours(a, n_neighbours, r_max * sigma)
+    nb = np.asarray(neighbours)
+    valid = nb >= 0
+    j = np.where(valid, nb, 0)
+    change = (b[j] - b[:, np.newaxis, :]) - (a[j] - a[:, np.newaxis, :])
+    moved = valid & (np.hypot(change[..., 0], change[..., 1]) > threshold * sigma)
+    if free_surface is None:
+        free_surface = free_surface_height(a, sigma)
+    bulk = a[:, 1] < free_surface - bulk_depth * sigma
+    return bulk & (moved.sum(axis=1) >= min_count), bulk
+
+
+@dataclass(frozen=True)
+class SlipResult:
+    """Slip probability p_s over periods.
+
+    p_s : float, mean over periods of the fraction of bulk particles that slip
+    sem : float, standard error of p_s from the period-to-period scatter
+    per_period : (n_periods,) fraction per period (NaN if no bulk particle)
+    n_slips, n_trials : int, total slips and total bulk particle-periods (for
+        the binomial treatment of zero counts in the Arrhenius fit)
+    """
+
+    p_s: float
+    sem: float
+    per_period: np.ndarray
+    n_slips: int
+    n_trials: int
+
+    @property
+    def n_periods(self) -> int:
+        return int(np.isfinite(self.per_period).sum())
+
+
+def slip_probability(positions: np.ndarray, **kwargs) -> SlipResult:
+    """p_s: fraction of bulk particles slipping per period, averaged over periods.
+
+    Parameters
+    ----------
+    positions : (n_periods + 1, N, 2) float [σ]
+        Positions at the same phase of consecutive periods (the paper: 200).
+    **kwargs
+        Passed to :func:`slip_flags` (neighbours and bulk recomputed at each
+        period's start).
+    """
+    pos = np.asarray(positions, dtype=np.float64)
+    per, slips, trials = [], 0, 0
+    for p in range(pos.shape[0] - 1):
+        kw = dict(kwargs)
+        kw.pop("neighbours", None)
+        s, bulk = slip_flags(pos[p], pos[p + 1], **kw)
+        nb = int(bulk.sum())
+        per.append(s.sum() / nb if nb else np.nan)
+        slips += int(s.sum())
+        trials += nb
+    per = np.asarray(per)
+    n = np.isfinite(per).sum()
+    p_s = float(np.nanmean(per)) if n else np.nan
+    sem = float(np.nanstd(per, ddof=1) / np.sqrt(n)) if n > 1 else np.nan
+    return SlipResult(p_s, sem, per, slips, trials)
+
+
+# --------------------------------------------------------------- local order
+def _freud_system(positions, r_max, periodic_box):
+    import freud
+
+    pos = np.asarray(positions, dtype=np.float64)
+    if periodic_box is None:
+        lo, hi = pos.min(axis=0), pos.max(axis=0)
+        # Padding of 2 r_max + 1 on each side: no neighbour query can wrap.
+        L = (hi - lo) + 4.0 * r_max + 2.0
+        centre = 0.5 * (lo + hi)
+    else:
+        L = np.asarray(periodic_box, dtype=np.float64)
+        centre = np.zeros(2) + 0.5 * L  # periodic box spans [0, L)
+    box = freud.box.Box(Lx=float(L[0]), Ly=float(L[1]), is2D=True)
+    # Centred on the origin (freud's box is [-L/2, L/2)), float32 inside freud.
+    pts = np.zeros((len(pos), 3), dtype=np.float32)
+    pts[:, :2] = pos - centre
+    pts = box.wrap(pts)
+    return box, pts
+
+
+def bond_order(
+    positions: np.ndarray,
+    k: int = 6,
+    *,
+    r_max: float = 1.2,
+    n_neighbours: int | None = None,
+    periodic_box: tuple[float, float] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bond-orientational order ψ_k of each particle (freud.order.Hexatic).
+
+    ψ_k(i) = (1/n_i) Σ_j exp(i k θ_ij), θ_ij the angle of r_j − r_i to the x axis,
+    over the neighbours j of i: within ``r_max`` [σ], at most the ``n_neighbours``
+    nearest if given.
+
+    Parameters
+    ----------
+    positions : (N, 2) float [σ]
+    k : int, 6 (hexagonal) or 4 (square)
+    periodic_box : (Lx, Ly), optional
+        Periodic box [0, Lx) × [0, Ly). Default non-periodic: the system is placed
+        in a freud box padded by 2 r_max + 1 on every side, so no neighbour wraps.
+
+    Returns
+    -------
+    psi : (N,) complex128, NaN for a particle without neighbours
+    n : (N,) int, neighbours used
+    """
+    return _local_order(positions, (k,), r_max, n_neighbours, periodic_box)
+
+
+def _local_order(positions, ks, r_max, n_neighbours, periodic_box):
+    import freud
+
+    box, pts = _freud_system(positions, r_max, periodic_box)
+    query = {"r_max": float(r_max), "exclude_ii": True}
+    if n_neighbours is not None:
+        query["num_neighbors"] = int(n_neighbours)
+    nlist = freud.locality.AABBQuery(box, pts).query(pts, query).toNeighborList()
+    n = np.bincount(nlist.query_point_indices, minlength=len(pts)).astype(np.int64)
+    out = []
+    for k in ks:
+        op = freud.order.Hexatic(k=int(k))
+        op.compute((box, pts), neighbors=nlist)
+        psi = np.asarray(op.particle_order, dtype=np.complex128)
+        out.append(np.where(n > 0, psi, np.nan + 1j * np.nan))
+    return (*out, n)
+
+
+#: Codes of :func:`classify_order`.
+ORDER_LABELS = {0: "disordered", 1: "hexagonal", 2: "square"}
+
+
+def classify_order(
+    psi6: np.ndarray,
+    psi4: np.ndarray,
+    n: np.ndarray,
+    *,
+    threshold: float = 0.7,
+    min_neighbours: int = 3,
+) -> np.ndarray:
+    """Local order class per particle from |ψ6|, |ψ4| (the colours of Fig. 1).
+
+    1 = hexagonal: |ψ6| ≥ threshold > |ψ4|; 2 = square: |ψ4| ≥ threshold > |ψ6|;
+    0 = disordered otherwise, and always for fewer than ``min_neighbours``
+    neighbours (two opposite neighbours give |ψ6| = |ψ4| = 1). Threshold 0.7:
+    a perfect lattice gives 1 (its wall rows too: 4 neighbours at 0°, 60°,
+    120°, 180° in a hexagonal crystal), the other lattice gives 0, and a
+    dense random packing spreads over [0, 1].
+    """
+    a6, a4 = np.abs(np.asarray(psi6)), np.abs(np.asarray(psi4))
+    enough = np.asarray(n) >= min_neighbours
+    a6 = np.where(np.isfinite(a6), a6, 0.0)
+    a4 = np.where(np.isfinite(a4), a4, 0.0)
+    hexa = enough & (a6 >= threshold) & (a4 < threshold)
+    square = enough & (a4 >= threshold) & (a6 < threshold)
+    return np.where(hexa, 1, np.where(square, 2, 0)).astype(np.int8)
+
+
+def local_order(
+    positions: np.ndarray,
+    *,
+    r_max: float = 1.2,
+    n_neighbours: int | None = None,
+    periodic_box: tuple[float, float] | None = None,
+    threshold: float = 0.7,
+) -> dict[str, np.ndarray]:
+    """ψ6, ψ4 (same neighbour list), neighbour counts and order class per particle.
+
+    Returns a dict with ``psi6``, ``psi4`` (N,) complex, ``n`` (N,) int and
+    ``order`` (N,) int8 codes of :data:`ORDER_LABELS`; parameters as
+    :func:`bond_order` and :func:`classify_order`. The 1.2σ default neighbour
+    radius takes the first shell of a dense disk packing (contacts at ~1σ)
+    and excludes the square lattice's diagonals (√2σ) and the hexagonal
+    second shell (√3σ).
+    """
+    psi6, psi4, n = _local_order(positions, (6, 4), r_max, n_neighbours, periodic_box)
+    order = classify_order(psi6, psi4, n, threshold=threshold)
+    return {"psi6": psi6, "psi4": psi4, "n": n, "order": order}
+
+
+# ------------------------------------------------------------- crystal check
+def bulk_mask(positions: np.ndarray, lx: float, depth: float = 2.0) -> np.ndarray:
+    """(N,) bool: disks more than ``depth`` σ from the side walls (x = 0, ``lx``), from the
+    lowest disk and from the free surface (:func:`free_surface_height`)."""
+    pos = np.asarray(positions, dtype=np.float64)
+    top = free_surface_height(pos)
+    zmin = pos[:, 1].min()
+    return (
+        (pos[:, 0] > depth)
+        & (pos[:, 0] < lx - depth)
+        & (pos[:, 1] > zmin + depth)
+        & (pos[:, 1] < top - depth)
+    )
+
+
+def delaunay_coordination(positions: np.ndarray) -> np.ndarray:
+    """(N,) int: Delaunay neighbours of every point (scipy.spatial.Delaunay).
+
+    Six for every interior site of a triangular lattice; a dislocation is a bound pair
+    of a five- and a seven-fold site. Unlike a distance cutoff, the count does not change
+    under small thermal displacements of a dense triangular packing (its Delaunay
+    triangulation has no four co-circular points).
+    """
+    from scipy.spatial import Delaunay
+
+    pts = np.asarray(positions, dtype=np.float64)
+    indptr, _ = Delaunay(pts).vertex_neighbor_vertices
+    return np.diff(indptr).astype(np.int64)
+
+
+@dataclass(frozen=True)
+class CrystalCheck:
+    """Order of a bed's bulk (:func:`crystal_check`).
+
+    Attributes
+    ----------
+    psi6 : float
+        Mean |ψ6| of the bulk disks (NaN without bulk).
+    hexagonal : float
+        Fraction of bulk disks classed hexagonal (:func:`classify_order`).
+    dislocations : int
+        Bulk disks with other than six Delaunay neighbours (each dislocation core
+        contributes a 5-7 pair, so this is about twice the number of dislocations).
+    n_bulk : int
+    intact : bool
+        ``psi6 >= min_psi6`` and no dislocation: still the defect-free crystal.
+    """
+
+    psi6: float
+    hexagonal: float
+    dislocations: int
+    n_bulk: int
+    intact: bool
+
+
+def crystal_check(
+    positions: np.ndarray,
+    lx: float,
+    *,
+    r_max: float = 1.2,
+    threshold: float = 0.7,
+    min_psi6: float = 0.9,
+    depth: float = 2.0,
+    local: dict | None = None,
+) -> CrystalCheck:
+    """Whether a bed's bulk (:func:`bulk_mask`) is still a defect-free hexagonal crystal.
+
+    Parameters
+    ----------
+    positions : (N, 2) float [σ]
+    lx : float [σ]
+        Box width.
+    r_max, threshold
+        ψ6 neighbour radius and hexagonal class threshold (:func:`local_order`).
+    min_psi6 : float
+        Least bulk mean |ψ6| of an intact crystal.
+    depth : float [σ]
+        Bulk window (:func:`bulk_mask`).
+    local : dict, optional
+        :func:`local_order` of ``positions`` with the same ``r_max`` and ``threshold``,
+        if the caller has it already (it is not computed twice).
+    """
+    pos = np.asarray(positions, dtype=np.float64)
+    inside = bulk_mask(pos, lx, depth)
+    lo = local if local is not None else local_order(pos, r_max=r_max, threshold=threshold)
+    a6 = np.abs(lo["psi6"][inside])
+    a6 = a6[np.isfinite(a6)]
+    n_bulk = int(inside.sum())
+    if n_bulk == 0:
+        return CrystalCheck(float("nan"), float("nan"), 0, 0, False)
+    psi6 = float(a6.mean()) if a6.size else float("nan")
+    hexagonal = float(np.mean(lo["order"][inside] == 1))
+    dislocations = int(np.count_nonzero(delaunay_coordination(pos)[inside] != 6))
+    intact = bool(np.isfinite(psi6) and psi6 >= min_psi6 and dislocations == 0)
+    return CrystalCheck(psi6, hexagonal, dislocations, n_bulk, intact)
+
+
+# ------------------------------------------------------------------ per point
 class ReplicaRun:
     """The parts of one replica joined along the measured periods.
 
@@ -82,7 +666,7 @@ def point_dataset(
     detection, slips, order : mapping
         The ``box.detection``, ``box.slips``, ``box.order`` config sections.
     lx : float [σ]
-        Box width (for the bulk window of :func:`granpipe.analysis.box.crystal_check`).
+        Box width (for the bulk window of :func:`crystal_check`).
     """
     reps = sorted(runs)
     R = len(reps)
@@ -102,21 +686,21 @@ def point_dataset(
     r_max = float(order["neighbour_cutoff"])
     for r in reps:
         run = runs[r]
-        s_c, s_j = ab.convection_measure(run.z_tracers[:, 0, :])
-        s_b, s_k = ab.bouncing_measure(run.z_tracers, run.z_plate)
-        frac, _ = ab.detachment_fraction(run.bed_gap, tol=float(detection["detachment_gap"]))
+        s_c, s_j = convection_measure(run.z_tracers[:, 0, :])
+        s_b, s_k = bouncing_measure(run.z_tracers, run.z_plate)
+        frac, _ = detachment_fraction(run.bed_gap, tol=float(detection["detachment_gap"]))
         tg_p = run.T_g.mean(axis=1)
-        sl = ab.slip_probability(
+        sl = slip_probability(
             run.frames,
             threshold=float(slips["displacement"]),
             min_count=int(slips["min_neighbours"]),
             r_max=float(slips["neighbour_cutoff"]),
             bulk_depth=float(slips["surface_depth"]),
         )
-        lo0 = ab.local_order(run.frames[0], r_max=r_max, threshold=float(order["threshold"]))
-        lo1 = ab.local_order(run.frames[-1], r_max=r_max, threshold=float(order["threshold"]))
+        lo0 = local_order(run.frames[0], r_max=r_max, threshold=float(order["threshold"]))
+        lo1 = local_order(run.frames[-1], r_max=r_max, threshold=float(order["threshold"]))
         checks = {
-            when: ab.crystal_check(
+            when: crystal_check(
                 frame, lx, r_max=r_max, threshold=float(order["threshold"]),
                 min_psi6=float(order["crystal_min_psi6"]), local=lo,
             )
@@ -333,9 +917,9 @@ def convergence(
     n = z_tracers.shape[0]
     if P.min() < 1 or P.max() > n:
         raise ValueError(f"periods must lie in 1..{n}, got {P.min()}..{P.max()}")
-    _, s_j = ab.convection_measure(z_tracers[:, 0, :])
+    _, s_j = convection_measure(z_tracers[:, 0, :])
     tg = np.asarray(T_g).mean(axis=1)
-    sl = ab.slip_probability(
+    sl = slip_probability(
         np.asarray(frames[: P.max() + 1], dtype=np.float64),
         threshold=float(slips["displacement"]),
         min_count=int(slips["min_neighbours"]),
@@ -345,7 +929,7 @@ def convergence(
     out = {"P": P, "s_c": [], "s_b": [], "T_g": [], "p_s": []}
     for p in P:
         out["s_c"].append(float(np.sqrt(np.mean(s_j[:p] ** 2))))
-        out["s_b"].append(ab.bouncing_measure(z_tracers[:p], z_plate[:p])[0])
+        out["s_b"].append(bouncing_measure(z_tracers[:p], z_plate[:p])[0])
         out["T_g"].append(float(tg[:p].mean()))
         per = sl.per_period[:p]
         out["p_s"].append(float(np.nanmean(per)) if np.isfinite(per).any() else math.nan)

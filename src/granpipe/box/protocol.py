@@ -2,7 +2,7 @@
 
 One run of a point ``(N_l, Γ, init)`` and replica, in order:
 
-1. Start from the prepared state (:mod:`granpipe.box.prepare`), bed resting on the plate
+1. Start from the prepared state (:mod:`granpipe.box.preparation`), bed resting on the plate
    at ``z = 0``, time ``t = 0``. Shear histories of the settled packing are not carried
    into the run (the drive starts from positions, velocities and spins).
 2. Drive the plate, ``z_b(t) = z0 + A r(t) sin(ωt + φ)`` with ``A = Γ g/ω²``
@@ -19,7 +19,7 @@ One run of a point ``(N_l, Γ, init)`` and replica, in order:
    gap under the bed, disks touching the plate, instantaneous granular temperature
    (Eq. 2), bed centre of mass. At every cycle start, all positions (float32), for slips
    (Sec. V) and ψ6/ψ4. Tracers: the row closest to mid-height of the bed at the start of
-   the measurement (:func:`granpipe.analysis.box.select_tracers`).
+   the measurement (:func:`granpipe.box.measures.select_tracers`).
 
 A long run is a chain of *parts* (``periods_per_part`` periods each); part ``p``
 continues from the engine state saved at the end of part ``p - 1`` (shear histories and
@@ -38,10 +38,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..analysis import box as ab
 from ..engine import FlatWalls, State
 from . import model
-from .prepare import box_simulation, disk_arrays
+from .measures import granular_temperature, select_tracers
+from .preparation import box_simulation, disk_arrays
 
 __all__ = [
     "PartResult",
@@ -157,7 +157,7 @@ def _sample(state, walls: FlatWalls, t: float):
     zmin_bottom = pos[:, 1] - 0.5 * model.DIAMETER
     gap = float(zmin_bottom.min() - zb)
     contacts = int(np.count_nonzero(zmin_bottom < zb))
-    tg = float(ab.granular_temperature(vel, model.MASS))
+    tg = float(granular_temperature(vel, model.MASS))
     return zb, pos, vel, gap, contacts, tg, float(pos[:, 1].mean()), float(vel[:, 1].mean())
 
 
@@ -271,7 +271,7 @@ def run_part(
 
     # the tracer row at the start of the measurement
     if tracers is None:
-        tracers = ab.select_tracers(state.positions)
+        tracers = select_tracers(state.positions)
     tracers = np.asarray(tracers, dtype=np.int64)
     n_t = tracers.size
 

@@ -28,7 +28,7 @@ import xarray as xr
 from ..errors import SimulationError
 from ..io import RunFileError, config_hash, expect_attrs, read_dataset, write_dataset
 from ..seeds import replica_rng, replica_seed
-from . import layout, model, prepare, protocol
+from . import layout, model, preparation, protocol
 from .layout import ensemble_params, figures_params, fits_params, runs_params
 
 __all__ = [
@@ -89,13 +89,13 @@ def init_stage(
     if log:
         log(f"{label}: N = {n}, seed = {seed}")
     try:
-        prep = prepare.prepare(physics, init_cfg, n, kind, rng, log=log)
+        prep = preparation.prepare(physics, init_cfg, n, kind, rng, log=log)
     except SimulationError as exc:
         raise exc.with_context(study="box", point=state, replica=replica, seed=seed) from exc
-    from ..analysis import box as ab
+    from .measures import crystal_check, local_order
 
-    lo = ab.local_order(prep.positions)
-    psi6 = ab.crystal_check(prep.positions, float(physics["Lx"]), local=lo).psi6
+    lo = local_order(prep.positions)
+    psi6 = crystal_check(prep.positions, float(physics["Lx"]), local=lo).psi6
     if log:
         log(
             f"{label}: settled={prep.settled} after {prep.settle_time:.2f} t0 "
@@ -368,7 +368,7 @@ def fit_n_l(fits_cfg: Mapping, n_ls) -> int:
 def figure_mu_w(values) -> float:
     """The side-wall friction Figures 1 and 3–5 draw: Table I's 0.6 if the grid has it,
     else the smallest."""
-    from .fitting import PAPER_MU_W
+    from .fits import PAPER_MU_W
 
     vals = sorted({float(v) for v in values})
     return PAPER_MU_W if any(math.isclose(v, PAPER_MU_W) for v in vals) else vals[0]
@@ -384,20 +384,20 @@ def fits_stage(
     import warnings
 
     from ..analysis.summary import write_summary
-    from . import fitting
+    from . import fits
 
     out_dir = Path(out_dir)
-    table = fitting.points_table(ensemble_files)
-    ths = fitting.thresholds_table(table, params["detection"])
+    table = fits.points_table(ensemble_files)
+    ths = fits.thresholds_table(table, params["detection"])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        tfits = fitting.temperature_fits(table, params["fits"])
-        sfits = fitting.slip_fits(table, tfits, params["fits"])
-    datasets = fitting.fits_datasets(table, ths, tfits, sfits)
+        tfits = fits.temperature_fits(table, params["fits"])
+        sfits = fits.slip_fits(table, tfits, params["fits"])
+    datasets = fits.fits_datasets(table, ths, tfits, sfits)
     written = []
     for name, ds in datasets.items():
         written.append(write_dataset(ds, out_dir / f"{name}.nc", config_subset=params, study="box"))
-    rows = fitting.summary_rows(table, ths, tfits, sfits)
+    rows = fits.summary_rows(table, ths, tfits, sfits)
     written.append(write_summary(rows, out_dir / "summary.csv", merge=False))
     if log:
         for r in rows:
@@ -450,7 +450,7 @@ def figures_stage(
     thresholds against it (PNG and PDF)."""
     from ..figures import box as figs
     from ..figures import save_figure
-    from .fitting import PAPER
+    from .fits import PAPER
 
     out_dir = Path(out_dir)
     points, ths, temp, slips = load_fits(fits_dir)

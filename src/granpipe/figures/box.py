@@ -176,14 +176,14 @@ def segmented_curve(x_log: np.ndarray, intercept: float, slopes, breakpoints_log
 
 def _split_broken(g: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(points used by the fits, crystal points left out because their crystal broke)."""
-    from ..box.fitting import used_mask
+    from ..box.fits import used_mask
 
     used = used_mask(g)
     return g[used], g[~used]
 
 
 def _broken_note(ax, points: pd.DataFrame) -> None:
-    from ..box.fitting import used_mask
+    from ..box.fits import used_mask
 
     if not used_mask(points).all():
         ax.text(0.98, 0.02, "×: crystal broken before measurement\n(not fitted)",
@@ -325,7 +325,7 @@ def fig6_wall_friction(thresholds: pd.DataFrame, paper: dict | None = None):
     ----------
     thresholds : DataFrame
         Columns init, N_l, mu_w, criterion, Gamma, Gamma_low, Gamma_high, status (rows of
-        :func:`granpipe.box.fitting.thresholds_table`).
+        :func:`granpipe.box.fits.thresholds_table`).
     paper : dict, optional
         Lines to draw: label -> Γ (e.g. the paper's bouncing and random-start convection).
 

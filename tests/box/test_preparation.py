@@ -6,31 +6,31 @@ import numpy as np
 import pytest
 from scipy.spatial.distance import pdist
 
-from granpipe.box import lattice, model
+from granpipe.box import model, preparation
 
 
 def test_spanning_crystal_rows_touch_both_walls_and_the_plate():
-    pos = lattice.crystal_positions(200, 20.0, "spanning")
+    pos = preparation.crystal_positions(200, 20.0, "spanning")
     assert pos.shape == (200, 2)
     assert pdist(pos).min() == pytest.approx(1.0, abs=1e-12)
     bottom = pos[np.isclose(pos[:, 1], 0.5)]
     assert len(bottom) == 20
     assert bottom[:, 0].min() == pytest.approx(0.5) and bottom[:, 0].max() == pytest.approx(19.5)
     # rows √3/2 apart, alternating 20 and 19 disks: 200 = 5 x 39 + 5 on top
-    rows = np.round((pos[:, 1] - 0.5) / lattice.ROW_SPACING).astype(int)
+    rows = np.round((pos[:, 1] - 0.5) / preparation.ROW_SPACING).astype(int)
     counts = np.bincount(rows)
     assert list(counts[:10]) == [20, 19] * 5 and counts[10] == 5
 
 
 def test_inset_crystal_leaves_room_at_the_walls():
-    pos = lattice.crystal_positions(100, 20.0, "inset")
+    pos = preparation.crystal_positions(100, 20.0, "inset")
     assert pos[:, 0].min() > 0.5 + 0.2 and pos[:, 0].max() < 19.5 - 0.2
     assert pdist(pos).min() == pytest.approx(1.0, abs=1e-12)
-    assert lattice.crystal_row_lengths(20.0, "inset") == (19, 19)
+    assert preparation.crystal_row_lengths(20.0, "inset") == (19, 19)
 
 
 def test_partial_top_row_is_centred():
-    pos = lattice.crystal_positions(23, 6.0, "spanning")  # rows 6, 5, 6, 5 + 1
+    pos = preparation.crystal_positions(23, 6.0, "spanning")  # rows 6, 5, 6, 5 + 1
     top = pos[pos[:, 1] == pos[:, 1].max()]
     # one of the two central sites of a 6-site row (x = 2.5 or 3.5 in Lx = 6)
     assert len(top) == 1 and abs(top[0, 0] - 3.0) == pytest.approx(0.5)
@@ -38,12 +38,12 @@ def test_partial_top_row_is_centred():
 
 def test_random_placement_has_no_overlap_and_stays_in_the_box():
     rng = np.random.default_rng(5)
-    pos = lattice.random_positions(400, 20.0, 0.3, rng)
+    pos = preparation.random_positions(400, 20.0, 0.3, rng)
     assert pdist(pos).min() >= 1.0
     assert pos[:, 0].min() >= 0.5 and pos[:, 0].max() <= 19.5 and pos[:, 1].min() >= 0.5
     area = 400 * math.pi / 4
     assert area / (20.0 * pos[:, 1].max()) == pytest.approx(0.3, rel=0.1)
-    again = lattice.random_positions(400, 20.0, 0.3, np.random.default_rng(5))
+    again = preparation.random_positions(400, 20.0, 0.3, np.random.default_rng(5))
     np.testing.assert_array_equal(pos, again)
 
 

@@ -13,7 +13,9 @@ import pandas as pd
 import pytest
 
 from granpipe.analysis.summary import summary_frame
-from granpipe.box import fitting
+from granpipe.box import fits
+from granpipe.box.fits import threshold_crossing, threshold_from_flags
+from granpipe.box.measures import BOUNCING_THRESHOLD, CONVECTION_THRESHOLD
 
 DETECTION = {
     "convection_s_c": 1.0,
@@ -96,7 +98,7 @@ def _table(seed, mu_w=0.6):
 
 
 def test_thresholds_interpolate_between_bracketing_grid_points():
-    ths = fitting.thresholds_table(_table(0), DETECTION)
+    ths = fits.thresholds_table(_table(0), DETECTION)
     assert len(ths) == 2 * 2 * 3
     for r in ths.itertuples():
         assert r.status == "crossed" and r.Gamma_low < r.Gamma < r.Gamma_high
@@ -114,8 +116,8 @@ def test_thresholds_interpolate_between_bracketing_grid_points():
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_segmented_and_arrhenius_fits_cover_the_truth(seed):
     table = _table(seed)
-    tfits = fitting.temperature_fits(table, FITS)
-    sfits = fitting.slip_fits(table, tfits, FITS)
+    tfits = fits.temperature_fits(table, FITS)
+    sfits = fits.slip_fits(table, tfits, FITS)
     for (init, n_l, _mu_w), tf in tfits.items():
         assert tf["regions"] == (["A", "B"] if init == "random" else ["A1", "A2", "B"])
         for true, est, (lo, hi) in zip(
@@ -124,21 +126,21 @@ def test_segmented_and_arrhenius_fits_cover_the_truth(seed):
             assert lo <= true <= hi, (init, n_l, true, est, lo, hi)
         for true, (lo, hi) in zip(SLOPES[init], tf["slope_ci"], strict=True):
             assert lo <= true <= hi
-        fits = sfits[(init, n_l, _mu_w)]
+        slip = sfits[(init, n_l, _mu_w)]
         for region, true in E_B[init].items():
-            af = fits[region]
+            af = slip[region]
             assert af.E_b_ci[0] <= true <= af.E_b_ci[1], (init, region, af.E_b, af.E_b_ci)
         if init == "crystal":
             # A1 has no slip: no barrier, only upper bounds, and the paper's "exactly zero"
-            assert math.isnan(fits["A1"].E_b) and len(fits["A1"].zero_upper) > 0
+            assert math.isnan(slip["A1"].E_b) and len(slip["A1"].zero_upper) > 0
 
 
 def test_summary_rows_carry_paper_values_and_fit_cleanly():
     table = _table(4)
-    ths = fitting.thresholds_table(table, DETECTION)
-    tfits = fitting.temperature_fits(table, FITS)
-    sfits = fitting.slip_fits(table, tfits, FITS)
-    df = summary_frame(fitting.summary_rows(table, ths, tfits, sfits)).set_index("quantity")
+    ths = fits.thresholds_table(table, DETECTION)
+    tfits = fits.temperature_fits(table, FITS)
+    sfits = fits.slip_fits(table, tfits, FITS)
+    df = summary_frame(fits.summary_rows(table, ths, tfits, sfits)).set_index("quantity")
     assert df.loc["K_m_break_1[N_l=20,init=random,mu_w=0.6]", "paper_value"] == 3.3
     assert df.loc["E_b_A2[N_l=40,init=crystal,mu_w=0.6]", "paper_value"] == 130.0
     assert df.loc["E_b_B[N_l=40,init=crystal,mu_w=0.6]", "paper_value"] == 7.0
@@ -149,14 +151,14 @@ def test_summary_rows_carry_paper_values_and_fit_cleanly():
     row = df.loc["Gamma_convection[N_l=20,init=crystal,mu_w=0.6]"]
     assert row["ci_low"] == pytest.approx(2.6) and row["ci_high"] == pytest.approx(2.8)
     assert (df["study"] == "box").all()
-    ds = fitting.fits_datasets(table, ths, tfits, sfits)
+    ds = fits.fits_datasets(table, ths, tfits, sfits)
     assert set(ds) == {"phase_diagram", "temperature", "slips"}
 
 
 def _fit_all(table):
-    ths = fitting.thresholds_table(table, DETECTION)
-    tfits = fitting.temperature_fits(table, FITS)
-    sfits = fitting.slip_fits(table, tfits, FITS)
+    ths = fits.thresholds_table(table, DETECTION)
+    tfits = fits.temperature_fits(table, FITS)
+    sfits = fits.slip_fits(table, tfits, FITS)
     return ths, tfits, sfits
 
 
@@ -178,7 +180,7 @@ def test_a_broken_crystal_point_is_left_out_of_the_crystal_fits():
         assert np.array_equal(tfits[key]["breakpoints_K_m"], tfits0[key]["breakpoints_K_m"])
         for region, af in sfits0[key].items():
             assert sfits[key][region].E_b == af.E_b or math.isnan(af.E_b)
-    df = summary_frame(fitting.summary_rows(table, ths, tfits, sfits)).set_index("quantity")
+    df = summary_frame(fits.summary_rows(table, ths, tfits, sfits)).set_index("quantity")
     row = df.loc["crystal_intact_points[N_l=20,init=crystal,mu_w=0.6]"]
     assert (row["value"], row["n"]) == (16, 17)
     # without the flag the same point does change the crystal fits
@@ -197,7 +199,53 @@ def test_wall_friction_values_are_separate_groups():
     pd.testing.assert_frame_equal(sel, ths_a)
     for key, tf in tfits_a.items():
         assert np.array_equal(tfits[key]["breakpoints_K_m"], tf["breakpoints_K_m"])
-    df = summary_frame(fitting.summary_rows(both, ths, tfits, sfits)).set_index("quantity")
+    df = summary_frame(fits.summary_rows(both, ths, tfits, sfits)).set_index("quantity")
     # the paper's numbers stand beside the rows of its own wall friction only
     assert df.loc["E_b_all[N_l=20,init=random,mu_w=0.6]", "paper_value"] == 7.0
     assert pd.isna(df.loc["E_b_all[N_l=20,init=random,mu_w=0.0]", "paper_value"])
+
+
+def test_exact_on_linear_measure_any_grid():
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        g = np.sort(rng.uniform(0.8, 4.0, size=9))
+        g[0], g[-1] = 0.8, 4.0
+        s_c = 0.7 * (g - 2.345) + CONVECTION_THRESHOLD  # crosses sigma at 2.345
+        th = threshold_crossing(g[::-1], s_c[::-1], CONVECTION_THRESHOLD)  # unsorted input
+        assert th.value == pytest.approx(2.345, abs=1e-12)
+        assert th.low < 2.345 <= th.high and th.status == "crossed" and th.n_crossings == 1
+
+
+def test_log_scale_exact_on_exponential_measure():
+    g = np.linspace(0.8, 3.0, 12)
+    s_b = BOUNCING_THRESHOLD * np.exp(4.0 * (g - 1.13))
+    th = threshold_crossing(g, s_b, BOUNCING_THRESHOLD, scale="log")
+    assert th.value == pytest.approx(1.13, abs=1e-12)
+    lin = threshold_crossing(g, s_b, BOUNCING_THRESHOLD)
+    assert lin.value != pytest.approx(1.13, abs=1e-3)  # linear interpolation is biased here
+
+
+def test_band_gives_interval():
+    g = np.linspace(1.0, 3.0, 11)
+    m = g - 1.0
+    th = threshold_crossing(g, m, 1.0, measure_low=m - 0.1, measure_high=m + 0.1)
+    assert (th.ci_low, th.value, th.ci_high) == pytest.approx((1.9, 2.0, 2.1))
+
+
+def test_outside_grid_and_nonmonotonic():
+    g = np.array([1.0, 1.5, 2.0, 2.5])
+    below = threshold_crossing(g, [2.0, 3, 4, 5], 1.0)
+    assert below.status == "below_grid" and np.isnan(below.value) and below.high == 1.0
+    above = threshold_crossing(g, [0.1, 0.2, 0.3, 0.4], 1.0)
+    assert above.status == "above_grid" and above.low == 2.5 and np.isnan(above.high)
+    wiggly = threshold_crossing(np.arange(6.0), [0, 2, 0, 0, 2, 3], 1.0)
+    assert wiggly.n_crossings == 2 and wiggly.value == pytest.approx(0.5)
+    last = threshold_crossing(np.arange(6.0), [0, 2, 0, 0, 2, 3], 1.0, which="last")
+    assert last.value == pytest.approx(3.5)
+
+
+def test_flags_bracket():
+    th = threshold_from_flags([1.0, 1.2, 1.4, 1.6], [False, False, True, True])
+    assert (th.low, th.value, th.high) == pytest.approx((1.2, 1.3, 1.4))
+    assert (th.ci_low, th.ci_high) == (1.2, 1.4)
+    assert threshold_from_flags([1.0, 2.0], [False, False]).status == "above_grid"
