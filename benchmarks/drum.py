@@ -22,15 +22,15 @@ import time
 import numpy as np
 import yaml
 
-from granpipe.drum.layout import point_sections
+from granpipe.drum.layout import filled, point_sections
 from granpipe.drum.protocol import (
     DrumModel,
     initial_tangent,
     prepare,
     replica_streams,
     run_replica,
+    steps,
 )
-from granpipe.drum.settings import filled, steps
 
 PAPER_PAIRS = 70_000
 

@@ -141,7 +141,7 @@ def _non_finite(obj, path=()) -> list[str]:
 
 
 STUDY_CHECKS = {
-    "drum": "granpipe.drum.settings",
+    "drum": "granpipe.drum.layout",
     "column": "granpipe.column.layout",
     "box": "granpipe.box.layout",
 }

@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from granpipe.analysis.fits import FitResult
+from granpipe.analysis.bootstrap import FitResult
 from granpipe.analysis.summary import (
     COLUMNS,
     read_summary,

@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from granpipe.drum.records import ReplicaRecord, batch_dataset
-from granpipe.drum.settings import filled, steps, tiny_section
+from granpipe.drum.layout import filled
+from granpipe.drum.measures import ReplicaRecord, batch_dataset
+from granpipe.drum.protocol import steps, tiny_section
 from granpipe.io import write_dataset
 
 

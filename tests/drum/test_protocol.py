@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from granpipe.drum.protocol import DrumModel, run_replica
-from granpipe.drum.settings import omega, seed_physics, steps, tiny_section
+from granpipe.drum.layout import seed_physics
+from granpipe.drum.model import omega
+from granpipe.drum.protocol import DrumModel, run_replica, steps, tiny_section
 from granpipe.drum.stages import init_stage, runs_stage
 from granpipe.errors import SimulationError
 from granpipe.io import config_from_attrs, read_dataset

@@ -9,7 +9,7 @@
 import re
 
 from granpipe.drum import layout as drum_layout
-from granpipe.drum.settings import filled as drum_filled
+from granpipe.drum.layout import filled as drum_filled
 
 DRUM = drum_filled(config.get("drum", {}))
 DRUM_POINTS = drum_layout.point_sections(DRUM)

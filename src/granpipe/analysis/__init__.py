@@ -7,7 +7,8 @@ submodule does not pull in freud or pandas):
 
 - :mod:`.ensemble` — streaming (replica, time) batch reduction, batch means.
 - :mod:`.smoothing` — moving average λ̄ (drum Eq. 2), FFT low-pass.
-- :mod:`.fits` — onset / sign-change / lag fits with fit errors and bootstrap CIs.
+- :mod:`.bootstrap` — windowed polynomial fits (vertex, zero crossing) with fit errors,
+  percentile bootstrap over replicas or batches.
 - :mod:`.summary` — ``summary.csv`` rows and atomic writes.
 - :mod:`.regression` — segmented log–log regression, Arrhenius fits.
 """

@@ -114,7 +114,7 @@ class EnsembleAccumulator:
     ----------
     keep_batch_means : bool
         Also store each batch's mean and count, shape (batch, time), for
-        :func:`granpipe.analysis.fits.bootstrap_batches`. Memory then grows by one
+        :func:`granpipe.analysis.bootstrap.bootstrap_batches`. Memory then grows by one
         row per batch.
 
     Notes

@@ -146,9 +146,8 @@ def replica_cmd(replica, out, configfile, point, tiny):
     from ..config import load
     from ..errors import ConfigError
     from ..io import write_dataset
-    from .layout import point_sections
-    from .protocol import run_replica
-    from .settings import filled, seed_physics, tiny_section
+    from .layout import filled, point_sections, seed_physics
+    from .protocol import run_replica, tiny_section
 
     if replica < 0:
         raise click.BadParameter(f"must be >= 0, got {replica}", param_hint="--seed")

@@ -1,6 +1,13 @@
-"""Where the drum study's files live, relative to ``results/<scale>/drum/``.
+"""The drum's config section and where the study's files live (``results/<scale>/drum/``).
 
-One folder per parameter point (:func:`granpipe.drum.settings.points`), named after
+The ``drum:`` section (:func:`filled`): schema defaults, cross-key checks
+(:func:`check`), parameter points (:func:`points`) and the seeding subset
+(:func:`seed_physics`). Config keys and units: ``config/README.md`` (drum section) and
+``workflow/schemas/drum.schema.yaml``. Physics is in reduced units (d_s, m_s,
+t0 = sqrt(d_s/g)); protocol and analysis times are in seconds, as the paper quotes them
+(:func:`granpipe.drum.protocol.steps` converts them to whole numbers of steps of Δt).
+
+One folder per parameter point (:func:`points`), named after
 its size, drum period and start-up, e.g. ``N=736,period=900s,startup=paper``. Replicas
 come in fixed batches of ``ensemble.batch_size`` (:func:`granpipe.seeds.batch_replicas`),
 so a larger ``n_replicas`` only appends batches, and a new period or start-up only adds
@@ -11,9 +18,17 @@ here too (:func:`rule_params`).
 
 from __future__ import annotations
 
+import copy
+import functools
+import itertools
 from collections.abc import Mapping
+from pathlib import Path
 
-from .settings import PHYSICS_KEYS, filled, point_label, points
+import yaml
+
+from ..config import schema_dir
+from ..errors import ConfigError
+from .model import omega
 
 __all__ = [
     "POINT_PATTERN",
@@ -35,6 +50,15 @@ __all__ = [
     "FIGURES",
     "COMPARISON_FIGURES",
     "figure_files",
+    "check",
+    "MAX_SIMULATION_JOBS",
+    "PHYSICS_KEYS",
+    "POINT_KEYS",
+    "filled",
+    "points",
+    "reference_point",
+    "point_label",
+    "seed_physics",
 ]
 
 FIGURES = {
@@ -73,12 +97,12 @@ def point_name(point: Mapping) -> str:
     n = int(ph["n_small"]) + int(ph["n_large"])
     period = ph["period_s"]
     if isinstance(period, list):
-        raise ValueError("point_name needs one point's section (settings.points)")
+        raise ValueError("point_name needs one point's section (points)")
     return f"N={n},period={float(period):.4g}s,startup={sec['protocol']['startup']}"
 
 
 def point_sections(section: Mapping) -> dict[str, dict]:
-    """``{point name: point section}`` in the order of :func:`settings.points`."""
+    """``{point name: point section}`` in the order of :func:`points`."""
     return {point_name(p): p for p in points(section)}
 
 
@@ -173,3 +197,211 @@ def summary_file() -> str:
 def figure_files(exts=("png", "pdf")) -> list[str]:
     figs = {**FIGURES, **COMPARISON_FIGURES}
     return [f"figures/fig{k}_{name}.{ext}" for k, name in figs.items() for ext in exts]
+
+
+# ----- the drum config section: defaults, checks, points, the seeding subset
+PHYSICS_KEYS = ("physics", "settle", "protocol")
+"""Sub-sections that change a replica's trajectory (the settle section only for the
+``settled`` start-up): with n_replicas and batch_size excluded, so that a larger ensemble
+reuses every batch."""
+
+
+POINT_KEYS = (("physics", "period_s"), ("protocol", "startup"))
+"""Keys that may hold a list: each entry makes its own parameter point (``drum.design``)."""
+
+
+_NOT_SEEDED = (("physics", "max_overlap"),)
+"""Keys that never change a trajectory (a bad-state bound), left out of the seed."""
+
+
+def _fill_defaults(instance, schema, root):
+    """Recursively set schema defaults (objects and their properties) in place."""
+    if "$ref" in schema:
+        ref = schema["$ref"]
+        if not ref.startswith("#/"):
+            raise ValueError(f"unsupported $ref {ref}")
+        target = root
+        for part in ref[2:].split("/"):
+            target = target[part]
+        schema = {**target, **{k: v for k, v in schema.items() if k != "$ref"}}
+    if isinstance(instance, dict) and "properties" in schema:
+        for key, sub in schema["properties"].items():
+            if key not in instance and "default" in sub:
+                instance[key] = copy.deepcopy(sub["default"])
+            if key in instance:
+                _fill_defaults(instance[key], sub, root)
+    return instance
+
+
+@functools.lru_cache(maxsize=4)
+def _schema(path: str, mtime: int):
+    """The drum schema and its validator, read once per file version."""
+    import jsonschema
+
+    schema = yaml.safe_load(Path(path).read_text())
+    return schema, jsonschema.Draft202012Validator(schema)
+
+
+def filled(section: Mapping | None) -> dict:
+    """A deep copy of a ``drum`` section with every schema default filled in, checked.
+
+    The workflow's top-level validation does not fill defaults through the
+    ``$ref`` to ``drum.schema.yaml``, so library code always goes through this (the
+    schema is read once per process and file version).
+
+    Raises
+    ------
+    ConfigError
+        naming the key, if the section violates the schema or a fit window is not
+        ordered.
+    """
+    path = schema_dir() / "drum.schema.yaml"
+    schema, validator = _schema(str(path), path.stat().st_mtime_ns)
+    sec = _fill_defaults(copy.deepcopy(dict(section or {})), schema, schema)
+    errors = sorted(validator.iter_errors(sec), key=lambda e: list(map(str, e.absolute_path)))
+    if errors:
+        msgs = ["drum." + ".".join(map(str, e.absolute_path)) + f": {e.message}" for e in errors]
+        raise ConfigError("invalid drum configuration:\n  - " + "\n  - ".join(msgs))
+    for key in ("onset_vertex_window_s", "onset_zero_window_s", "decay_zero_window_s"):
+        lo, hi = sec["fits"][key]
+        if not lo < hi:
+            raise ConfigError(f"config key 'drum.fits.{key}' = {[lo, hi]} must be increasing")
+    if sec["protocol"]["decay_rotating_s"] >= sec["protocol"]["decay_window_s"]:
+        raise ConfigError(
+            "config key 'drum.protocol.decay_rotating_s' must be shorter than decay_window_s"
+        )
+    return sec
+
+
+MAX_SIMULATION_JOBS = 10_000
+"""The most init + runs jobs a drum config may ask for. Snakemake's planning time grows
+with the number of jobs: the paper scale (2,939 jobs over the three studies, 1,560 of
+them the drum's) plans in 17 s, ~6 ms per job, so 10,000 jobs take about a minute before
+anything runs; a larger ``batch_size`` is the remedy."""
+
+
+def check(section: Mapping) -> dict:
+    """Every check of a ``drum`` section, before any job runs; returns it filled.
+
+    Beyond the schema (:func:`filled`): fit windows inside the recorded windows, settling
+    times min ≤ max, the snapshot batch among the batches, and a plan Snakemake can
+    build (:data:`MAX_SIMULATION_JOBS`). Raises ConfigError naming the key.
+    """
+    sec = filled(section)
+    pr, fi = sec["protocol"], sec["fits"]
+    for key, window in (
+        ("onset_vertex_window_s", "onset_window_s"), ("onset_zero_window_s", "onset_window_s"),
+        ("vertex_search_s", "onset_window_s"), ("startup_window_s", "onset_window_s"),
+        ("decay_zero_window_s", "decay_window_s"),
+    ):  # fmt: skip
+        lo, hi = fi[key]
+        if not lo < hi:
+            raise ConfigError(f"config key 'drum.fits.{key}' = {[lo, hi]} must be increasing")
+        if hi > pr[window]:
+            raise ConfigError(
+                f"config key 'drum.fits.{key}' = {[lo, hi]} reaches beyond the recorded "
+                f"window 'drum.protocol.{window}' = {pr[window]} s"
+            )
+    st = sec["settle"]
+    if st["min_time_s"] > st["max_time_s"]:
+        raise ConfigError(
+            f"config keys 'drum.settle.min_time_s' = {st['min_time_s']} and "
+            f"'drum.settle.max_time_s' = {st['max_time_s']}: min must not exceed max"
+        )
+    from .protocol import steps
+
+    pts = points(sec)
+    batches = [
+        -(-int(p["ensemble"]["n_replicas"]) // int(p["ensemble"]["batch_size"])) for p in pts
+    ]
+    snap = int(sec["figures"]["snapshot_batch"])
+    if snap >= batches[0]:
+        raise ConfigError(
+            f"config key 'drum.figures.snapshot_batch' = {snap}: the reference point has "
+            f"only {batches[0]} batch(es) (0..{batches[0] - 1})"
+        )
+    jobs = 2 * sum(batches)
+    if jobs > MAX_SIMULATION_JOBS:
+        raise ConfigError(
+            f"config keys 'drum.ensemble.n_replicas' / 'batch_size': {jobs} simulation jobs "
+            f"over {len(pts)} point(s), more than {MAX_SIMULATION_JOBS} (Snakemake would "
+            "take over a minute to plan them): raise 'drum.ensemble.batch_size'"
+        )
+    for p in pts:
+        steps(p)  # times shorter than a step, a pre-rotation of no step
+    return sec
+
+
+def _values(sec: Mapping, key: tuple) -> list:
+    v = sec[key[0]][key[1]]
+    return list(v) if isinstance(v, list | tuple) else [v]
+
+
+def points(section: Mapping) -> list[dict]:
+    """The parameter points of a section: one filled section per point, each with one
+    ``physics.period_s`` and one ``protocol.startup``.
+
+    With ``design: star`` (default) the first entry of every list gives the *reference
+    point* (listed first), and every further entry varies that one key from it (so four
+    periods and two start-ups give five points); ``product`` takes every combination.
+    A point's section does not depend on the other entries of the lists, so adding an
+    entry adds its point and changes no other. Points other than the reference have
+    ``ensemble.variant_replicas`` replicas when that is set.
+    """
+    sec = filled(section)
+    values = [_values(sec, key) for key in POINT_KEYS]
+    if sec["design"] == "product":
+        combos = [list(c) for c in itertools.product(*values)]
+    else:
+        ref = [v[0] for v in values]
+        combos = [ref]
+        for i, vals in enumerate(values):
+            combos += [ref[:i] + [v] + ref[i + 1 :] for v in vals[1:]]
+    out = []
+    variant = sec["ensemble"]["variant_replicas"]
+    for i, combo in enumerate(combos):
+        p = copy.deepcopy(dict(sec))
+        for (a, b), v in zip(POINT_KEYS, combo, strict=True):
+            p[a][b] = v
+        if i > 0 and variant is not None:
+            p["ensemble"]["n_replicas"] = int(variant)
+        out.append(p)
+    return out
+
+
+def reference_point(section: Mapping) -> dict:
+    """The first point of :func:`points`: the entries the paper's numbers refer to."""
+    return points(section)[0]
+
+
+def point_label(point: Mapping, section: Mapping) -> str:
+    """Suffix of a point's summary rows: ``""`` for the reference point, else the keys
+    where it differs from it, e.g. ``"[period=450s]"`` or ``"[startup=settled]"``."""
+    ref = reference_point(section)
+    diff = []
+    for a, b in POINT_KEYS:
+        if point[a][b] != ref[a][b]:
+            diff.append(_point_part(b, point[a][b]))
+    return f"[{','.join(diff)}]" if diff else ""
+
+
+def _point_part(key: str, value) -> str:
+    if key == "period_s":
+        return f"period={float(value):.4g}s"
+    return f"{key}={value}"
+
+
+def seed_physics(section: Mapping) -> dict:
+    """The subset of a point's section that defines a replica: physics, protocol, and
+    settle for the ``settled`` start-up (the bad-state bound left out).
+
+    :func:`granpipe.seeds.replica_rng` hashes it; sample sizes, fits and figures are
+    not part of it.
+    """
+    sec = filled(section)
+    omega(sec["physics"])  # one point only
+    keys = [k for k in PHYSICS_KEYS if k != "settle" or sec["protocol"]["startup"] == "settled"]
+    out = {k: copy.deepcopy(sec[k]) for k in keys}
+    for a, b in _NOT_SEEDED:
+        out[a].pop(b, None)
+    return out

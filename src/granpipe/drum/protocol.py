@@ -8,7 +8,7 @@ bottom", and data are collected "after a brief equilibration period, correspondi
 one degree of rotation".
 
 1. **Placement** (stage ``init``) — the N mobile disks at random without overlap over
-   the whole free disk of the drum (:func:`granpipe.drum.placement.random_placement`,
+   the whole free disk of the drum (:func:`granpipe.drum.preparation.random_placement`,
    clearance ``protocol.placement_gap``), at rest, in a drum that is already turning.
 2. **Fall** (stage ``init``) — the disks fall and settle while the drum turns, with no
    speed cap or extra damping, until ``protocol.tangent_alignment_s`` before t = 0.
@@ -50,7 +50,7 @@ Then, for both:
    velocities zero from that step on).
 
 A replica's random stream is ``replica_rng("drum", physics, replica)`` with ``physics``
-the point's seeding subset (:func:`granpipe.drum.settings.seed_physics`); its first
+the point's seeding subset (:func:`granpipe.drum.layout.seed_physics`); its first
 spawned child places the disks, the second draws the tangent vectors. Every replica
 runs on its own engine state, so its output depends on nothing else: not the batch, its
 size, the thread count or the order. Replicas of a batch run side by side in threads
@@ -70,13 +70,12 @@ import numpy as np
 import xarray as xr
 
 from ..engine import DrumLaw, Simulation, WallDisks
-from ..errors import SimulationError
+from ..errors import ConfigError, SimulationError
 from ..seeds import batch_replicas, replica_rng, replica_seed
-from . import geometry
-from .layout import point_name
-from .placement import random_placement
-from .records import ReplicaRecord, Snapshot, batch_dataset
-from .settings import Steps, filled, omega, seed_physics, steps
+from .layout import filled, point_name, seed_physics
+from .measures import ReplicaRecord, Snapshot, batch_dataset
+from .model import DrumGeometry, diameters, geometry, masses, omega, wall_positions
+from .preparation import random_placement
 
 __all__ = [
     "DrumModel",
@@ -91,6 +90,10 @@ __all__ = [
     "run_batch",
     "run_replica",
     "replica_streams",
+    "Steps",
+    "steps",
+    "tiny_section",
+    "TINY_PROTOCOL",
 ]
 
 Log = Callable[[str], None]
@@ -115,7 +118,7 @@ class DrumModel:
     """
 
     physics: dict
-    geom: geometry.DrumGeometry
+    geom: DrumGeometry
     diameters: np.ndarray
     masses: np.ndarray
     n_mobile: int
@@ -124,9 +127,9 @@ class DrumModel:
     @classmethod
     def from_section(cls, section: Mapping) -> DrumModel:
         ph = dict(filled(section)["physics"])
-        geom = geometry.geometry(ph)
-        d = geometry.diameters(ph)
-        return cls(ph, geom, d, geometry.masses(ph), len(d), geometry.wall_positions(geom))
+        geom = geometry(ph)
+        d = diameters(ph)
+        return cls(ph, geom, d, masses(ph), len(d), wall_positions(geom))
 
     @property
     def omega(self) -> float:
@@ -149,7 +152,7 @@ class DrumModel:
         """An engine state: mobile disks (N, 2) then the wall disks, the drum turned
         clockwise by ``wall_angle`` [rad] from its position at placement."""
         n_w = self.geom.n_wall
-        walls = geometry.wall_positions(self.geom, wall_angle) if wall_angle else self.walls0
+        walls = wall_positions(self.geom, wall_angle) if wall_angle else self.walls0
         pos = np.concatenate([np.asarray(positions, np.float64), walls])
         vel = np.concatenate([np.asarray(velocities, np.float64), np.zeros((n_w, 2))])
         radii = np.concatenate([self.diameters, np.full(n_w, self.geom.d_wall)]) / 2.0
@@ -383,7 +386,7 @@ def run_protocol(
 ) -> ReplicaRecord:
     """Steps 3-6 of the module docstring from a prepared start; one onset-decay pair.
 
-    Returns a :class:`~granpipe.drum.records.ReplicaRecord` (λ in 1/t0, V in d_s/t0,
+    Returns a :class:`~granpipe.drum.measures.ReplicaRecord` (λ in 1/t0, V in d_s/t0,
     times in s); ``settled``/``settle_time`` are copied from ``start``.
     """
     t_wall = time.perf_counter()
@@ -727,3 +730,151 @@ def run_replica(section: Mapping, replica: int, *, log: Log = _quiet,
         f"{rec.n_steps} steps, {_cost_line(rec, model)}"
     )
     return batch_dataset([rec], st, model.diameters, model.geom.d_wall)
+
+
+# ------------------------- protocol times in steps; the tiny drum's protocol
+def _n_steps(seconds: float, dt_s: float, what: str) -> int:
+    n = seconds / dt_s
+    k = round(n)
+    if seconds > 0 and k == 0:
+        raise ConfigError(f"{what} = {seconds} s is shorter than one time step ({dt_s} s)")
+    return int(k)
+
+
+@dataclass(frozen=True)
+class Steps:
+    """Protocol durations of a section, in whole steps of Δt.
+
+    Attributes
+    ----------
+    dt : float [t0]
+    dt_s : float [s]
+    block : int
+        Steps per stored block mean (block_s rounded to a whole number of steps).
+    pre_rotation : int
+        Steps of rotation before t = 0: ``pre_rotation_deg`` (1° = 62,500 steps at the
+        paper's Ω and Δt), or ``pre_rotation_s`` when set; for the ``paper`` start-up
+        they start at the placement and include the fall.
+    alignment : int
+        Steps over which the tangent vector evolves before t = 0 (the paper start-up:
+        ``tangent_alignment_s`` in whole blocks, at most ``pre_rotation``; the settled
+        start-up: ``pre_rotation``, the tangent being set when the rotation starts).
+    realign : int
+        With ``tangent_while_waiting: false``: steps from the moment the avalanche became
+        continuous, when that was after the onset window, to the decay window, over which
+        a fresh tangent vector aligns (``decay_alignment_s`` in whole blocks).
+    onset : int
+        Steps of the onset window (a whole number of blocks).
+    decay_rotating : int
+        Steps of the decay window with the drum still turning (a whole number of blocks).
+    decay : int
+        Steps of the decay window (a whole number of blocks).
+    chunk : int
+        Steps per engine call (a whole number of blocks).
+    continuous_hold : int
+        Blocks the continuous-avalanche criterion looks back over.
+    max_rotation : int
+        Steps after t = 0 by which the avalanche must be continuous.
+    settle_min, settle_max : int
+        Steps of settling at least / at most (whole numbers of blocks).
+    settle_hold : int
+        Blocks the settling criterion looks back over.
+    """
+
+    dt: float
+    dt_s: float
+    block: int
+    pre_rotation: int
+    alignment: int
+    realign: int
+    onset: int
+    decay_rotating: int
+    decay: int
+    chunk: int
+    continuous_hold: int
+    max_rotation: int
+    settle_min: int
+    settle_max: int
+    settle_hold: int
+
+    @property
+    def block_s(self) -> float:
+        """Duration of one stored block [s]."""
+        return self.block * self.dt_s
+
+    @property
+    def block_t0(self) -> float:
+        """Duration of one stored block [t0]."""
+        return self.block * self.dt
+
+
+def steps(section: Mapping) -> Steps:
+    """Convert the protocol times of a section (seconds, degrees) into steps."""
+    sec = filled(section)
+    ph, pr, st = sec["physics"], sec["protocol"], sec["settle"]
+    dt = float(ph["dt"])
+    dt_s = dt * float(ph["t0_s"])
+    block = _n_steps(pr["block_s"], dt_s, "drum.protocol.block_s")
+
+    def blocks(seconds, what):  # whole number of blocks, at least one
+        return max(1, math.ceil(_n_steps(seconds, dt_s, what) / block - 1e-9))
+
+    if pr["pre_rotation_s"] is None:
+        pre = int(round(math.radians(pr["pre_rotation_deg"]) / (omega(ph) * dt)))
+    else:
+        pre = _n_steps(pr["pre_rotation_s"], dt_s, "drum.protocol.pre_rotation_s")
+    realign = block * round(_n_steps(pr["decay_alignment_s"], dt_s, "") / block)
+    align = block * round(_n_steps(pr["tangent_alignment_s"], dt_s, "") / block)
+    align = pre if pr["startup"] == "settled" else min(pre, align)
+    return Steps(
+        dt=dt,
+        dt_s=dt_s,
+        block=block,
+        pre_rotation=pre,
+        alignment=align,
+        realign=realign,
+        onset=block * blocks(pr["onset_window_s"], "drum.protocol.onset_window_s"),
+        decay_rotating=block * round(_n_steps(pr["decay_rotating_s"], dt_s, "") / block),
+        decay=block * blocks(pr["decay_window_s"], "drum.protocol.decay_window_s"),
+        chunk=block * blocks(pr["chunk_s"], "drum.protocol.chunk_s"),
+        continuous_hold=blocks(pr["continuous_hold_s"], "drum.protocol.continuous_hold_s"),
+        max_rotation=_n_steps(pr["max_rotation_s"], dt_s, "drum.protocol.max_rotation_s"),
+        settle_min=block * round(_n_steps(st["min_time_s"], dt_s, "") / block),
+        settle_max=block * blocks(st["max_time_s"], "drum.settle.max_time_s"),
+        settle_hold=blocks(st["hold_s"], "drum.settle.hold_s"),
+    )
+
+
+TINY_PROTOCOL = {
+    "pre_rotation_deg": 0.2,
+    "onset_window_s": 0.6,
+    "decay_window_s": 0.6,
+    "decay_rotating_s": 0.2,
+    "continuous_hold_s": 0.2,
+    "max_rotation_s": 1.0,
+    "chunk_s": 0.2,
+    "tangent_alignment_s": 0.1,
+    "decay_alignment_s": 0.1,
+}
+"""Short windows for the tiny drum (tests, ``granpipe drum replica --tiny``)."""
+
+
+TINY_SETTLE = {"min_time_s": 0.4, "max_time_s": 1.0}
+
+
+def tiny_section(section: Mapping | None = None, n_wall: int = 40, **protocol) -> dict:
+    """A section with a tiny drum (:func:`granpipe.drum.model.tiny_physics`).
+
+    Same disks, contact law, Δt and Ω as the paper, 40 wall disks (radius 8.8 d_s) and
+    23 + 23 mobile disks (the paper's filling fraction); settling and protocol
+    shortened (:data:`TINY_PROTOCOL`, :data:`TINY_SETTLE`; ``protocol`` overrides
+    keys) so that one replica takes about a second.
+    """
+    from .model import tiny_physics
+
+    sec = filled(section)
+    sec["physics"] = tiny_physics(n_wall, sec["physics"])
+    sec["protocol"].update(TINY_PROTOCOL)
+    sec["protocol"].update(protocol)
+    sec["settle"].update(TINY_SETTLE)
+    return filled(sec)

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io import check_run_files, read_dataset, write_dataset
-from .settings import filled
+from .layout import filled
 
 __all__ = [
     "init_stage",
@@ -83,7 +83,7 @@ def runs_stage(
 
 def ensemble_stage(params: Mapping, runs: Sequence[str | os.PathLike], out) -> Path:
     """Stream the run files of one point into ensemble means, standard errors and counts."""
-    from .fitting import reduce_runs
+    from .fits import reduce_runs
 
     sec = filled(params)
     t0 = time.perf_counter()
@@ -112,7 +112,7 @@ def fits_stage(
     (:func:`summary_stage` gathers them).
     """
     from ..analysis.summary import results_dataset
-    from .fitting import PAPER_VALUES, drum_fits, load_units
+    from .fits import PAPER_VALUES, drum_fits, load_units
 
     label = str(params.get("label", ""))
     sec = filled({k: v for k, v in params.items() if k != "label"})
@@ -154,7 +154,7 @@ def summary_stage(fits: Sequence[str | os.PathLike], summary: str | os.PathLike)
     """Gather the rows of every point's fits file into ``summary.csv`` (the paper's
     numbers next to the reference point's rows, whose label is empty)."""
     from ..analysis.summary import results_rows, write_summary
-    from .fitting import PAPER_VALUES
+    from .fits import PAPER_VALUES
 
     rows = []
     for path in fits:

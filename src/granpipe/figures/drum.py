@@ -255,7 +255,7 @@ def fig7_lag_vs_rotation(points: dict, undetermined_width: float = 20.0) -> plt.
     (no minimum, no lasting sign change), is not a measurement: it is marked at the
     bottom of the axis as undetermined instead of stretching the axis.
     """
-    from ..drum.fitting import PAPER_VALUES
+    from ..drum.fits import PAPER_VALUES
 
     chosen = _same(points, "period_s")
     fig, ax = plt.subplots(figsize=(6.4, 4.6), layout="constrained")

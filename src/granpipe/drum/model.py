@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ConfigError
+
 __all__ = [
     "T0_SECONDS",
     "DrumGeometry",
@@ -36,6 +38,7 @@ __all__ = [
     "filling_fraction",
     "tiny_physics",
     "PAPER_PHYSICS",
+    "omega",
 ]
 
 T0_SECONDS = 0.034975
@@ -154,3 +157,15 @@ def tiny_physics(n_wall: int = 40, physics: Mapping | None = None) -> dict:
     pairs = max(1, round(phi * np.pi * inner**2 / area_pair))
     tiny["n_small"] = tiny["n_large"] = int(pairs)
     return tiny
+
+
+# ------------------------------------------------------- the drum's rotation
+def omega(physics: Mapping) -> float:
+    """Angular speed of the drum's clockwise rotation [rad/t0], 2π t0 / period.
+
+    ``physics.period_s`` must be one number here (a point's section, :func:`points`).
+    """
+    period = physics["period_s"]
+    if isinstance(period, list | tuple):
+        raise ConfigError("drum.physics.period_s is a list: take one point (layout.points)")
+    return 2.0 * math.pi * float(physics["t0_s"]) / float(period)

@@ -1,12 +1,26 @@
-"""Drum fit pipeline on synthetic ensembles with a known vertex and known zeros."""
+"""Drum fits on synthetic ensembles with a known vertex and known zeros: the pipeline, the
+onset vertex, sign changes, automatic windows and lags."""
 
 import tracemalloc
 
 import numpy as np
 import pytest
 
-from granpipe.drum.fitting import PAPER_VALUES, drum_fits, load_units, reduce_runs
-from granpipe.drum.settings import filled
+from granpipe.analysis.bootstrap import (
+    FitResult,
+)
+from granpipe.drum.fits import (
+    PAPER_VALUES,
+    drum_fits,
+    lag,
+    load_units,
+    minimum_times,
+    reduce_runs,
+    sign_change_times,
+    vertex_time,
+    zero_crossing_time,
+)
+from granpipe.drum.layout import filled
 
 from .conftest import synthetic_runs
 
@@ -217,3 +231,70 @@ def test_startup_excess_measures_the_early_decay(tmp_path):
         r = {x.quantity: x for x in drum_fits(ens, load_units(files), FITS)[0]}
         sigma = r["onset_startup_excess_sigma"].value
         assert (sigma > 10) if decays else (sigma < 3), sigma
+
+
+T_GRID = np.arange(0.0, 6.0, 0.01)
+
+
+def test_vertex_and_zero_exact():
+    t = T_GRID
+    V = 5.0 + 3.0 * (t - 2.628) ** 2
+    r = vertex_time(t, V, (1.0, 4.0))
+    assert r.value == pytest.approx(2.628, abs=1e-10)
+    assert r.fit_error < 1e-8 and r.window == (1.0, 4.0)
+    lam = 0.8 * (t - 4.5)
+    z = zero_crossing_time(t, lam, (3.0, 5.5), quantity="q", unit="t0")
+    assert z.value == pytest.approx(4.5, abs=1e-12) and z.unit == "t0" and z.quantity == "q"
+
+
+def test_auto_windows():
+    rng = np.random.default_rng(3)
+    t = np.arange(0, 30, 0.004)
+    V = 10 + 2 * (t - 2.628) ** 2 + 0.01 * rng.normal(size=t.size)
+    r = vertex_time(t, V, "auto", half_width=1.5, search=(0.5, 6.0), smooth_q=10)
+    assert r.window[0] == pytest.approx(2.628 - 1.5, abs=0.05)
+    assert r.value == pytest.approx(2.628, abs=5 * r.fit_error + 1e-3)
+    lam = np.tanh((t - 14.5) / 4) + 0.2 * rng.normal(size=t.size)
+    z = zero_crossing_time(t, lam, "auto", half_width=2.0, search=(5, 25), smooth_q=62, direction=1)
+    assert z.value == pytest.approx(14.5, abs=4 * z.fit_error)
+    assert abs(0.5 * (z.window[0] + z.window[1]) - 14.5) < 0.3
+    assert "auto" in z.method
+
+
+def test_lag_combines_errors():
+    a = FitResult("sign_change_time", 14.5, 0.2, "s", n=10)
+    b = FitResult("onset_time", 2.6, 0.05, "s")
+    d = lag(a, b)
+    assert d.value == pytest.approx(11.9) and d.fit_error == pytest.approx(np.hypot(0.2, 0.05))
+    assert lag(a, 5.0).fit_error == 0.2
+
+
+def test_minimum_refuses_a_maximum_and_a_vertex_outside_the_window():
+    """Only an upward parabola with its vertex inside the window is an onset (a minimum)."""
+    t = T_GRID
+    rng = np.random.default_rng(3)
+    noise = 0.01 * rng.standard_normal(t.size)
+    up = 0.2 + 0.05 * (t - 2.6) ** 2 + noise
+    down = 0.2 - 0.05 * (t - 2.6) ** 2 + noise
+    rising = 0.2 + 0.05 * (t - 0.2) ** 2 + noise  # vertex at 0.2 s, window 1-4 s
+    Y = np.stack([up, down, rising])
+    value, err, c2, c2_err, reason, _ = minimum_times(t, Y, (1.0, 4.0))
+    assert list(reason) == [0, 2, 3]
+    assert value[0] == pytest.approx(2.6, abs=5 * err[0]) and np.isnan(value[1:]).all()
+    # the curvature is reported with its error either way, and its sign is significant
+    assert c2[0] == pytest.approx(0.05, abs=5 * c2_err[0]) and c2[1] < -10 * c2_err[1]
+    refused = vertex_time(t, down, (1.0, 4.0), require_minimum=True)
+    assert np.isnan(refused.value) and "maximum" in refused.note
+    plain = vertex_time(t, down, (1.0, 4.0))
+    assert plain.value == pytest.approx(2.6, abs=0.05) and plain.note == ""
+
+
+def test_sign_change_refuses_an_extrapolated_zero_and_the_wrong_direction():
+    t = T_GRID
+    rising = 0.5 * (t - 4.5)
+    Y = np.stack([rising, -rising, 0.5 * (t - 0.2)])
+    value, err, reason, _ = sign_change_times(t, Y, (3.0, 5.5), direction=+1)
+    assert list(reason) == [0, 2, 3]
+    assert value[0] == pytest.approx(4.5) and np.isnan(value[1:]).all()
+    v_any, _, r_any, _ = sign_change_times(t, Y, (3.0, 5.5), direction=0)
+    assert list(r_any) == [0, 0, 3] and v_any[1] == pytest.approx(4.5)

@@ -32,11 +32,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import xarray as xr
 
-from .settings import Steps
+if TYPE_CHECKING:
+    from .protocol import Steps
 
 __all__ = ["ReplicaRecord", "Snapshot", "time_coords", "batch_dataset"]
 

@@ -1,20 +1,15 @@
-"""Drum fits: vertex, zero crossing, auto windows, bootstrap coverage, lag."""
+"""Windowed fits and the bootstrap: exact polynomials, vertex and zero times, fit errors
+against the scatter, first crossings, bootstrap coverage and reproducibility."""
 
 import numpy as np
 import pytest
 
-from granpipe.analysis.fits import (
-    FitResult,
+from granpipe.analysis.bootstrap import (
     bootstrap_batches,
     bootstrap_replicas,
     first_crossing,
-    lag,
-    minimum_times,
     polyfit_window,
-    sign_change_times,
-    vertex_time,
     vertex_times,
-    zero_crossing_time,
     zero_crossing_times,
 )
 
@@ -28,17 +23,6 @@ def test_polyfit_recovers_exact_polynomial_and_ignores_nan():
     coef, cov, chi2, n, t_ref = polyfit_window(t, y, (1.0, 4.0), 2, t_ref=2.5)
     np.testing.assert_allclose(coef, [0.3, -1.2, 0.7], atol=1e-10)
     assert n == 300  # 301 samples in [1, 4] minus the NaN
-
-
-def test_vertex_and_zero_exact():
-    t = T_GRID
-    V = 5.0 + 3.0 * (t - 2.628) ** 2
-    r = vertex_time(t, V, (1.0, 4.0))
-    assert r.value == pytest.approx(2.628, abs=1e-10)
-    assert r.fit_error < 1e-8 and r.window == (1.0, 4.0)
-    lam = 0.8 * (t - 4.5)
-    z = zero_crossing_time(t, lam, (3.0, 5.5), quantity="q", unit="t0")
-    assert z.value == pytest.approx(4.5, abs=1e-12) and z.unit == "t0" and z.quantity == "q"
 
 
 @pytest.mark.parametrize("weighted", [False, True])
@@ -89,28 +73,6 @@ def test_first_crossing_and_directions():
     np.testing.assert_allclose(both, [2 * np.pi, np.pi], atol=1e-4)
 
 
-def test_auto_windows():
-    rng = np.random.default_rng(3)
-    t = np.arange(0, 30, 0.004)
-    V = 10 + 2 * (t - 2.628) ** 2 + 0.01 * rng.normal(size=t.size)
-    r = vertex_time(t, V, "auto", half_width=1.5, search=(0.5, 6.0), smooth_q=10)
-    assert r.window[0] == pytest.approx(2.628 - 1.5, abs=0.05)
-    assert r.value == pytest.approx(2.628, abs=5 * r.fit_error + 1e-3)
-    lam = np.tanh((t - 14.5) / 4) + 0.2 * rng.normal(size=t.size)
-    z = zero_crossing_time(t, lam, "auto", half_width=2.0, search=(5, 25), smooth_q=62, direction=1)
-    assert z.value == pytest.approx(14.5, abs=4 * z.fit_error)
-    assert abs(0.5 * (z.window[0] + z.window[1]) - 14.5) < 0.3
-    assert "auto" in z.method
-
-
-def test_lag_combines_errors():
-    a = FitResult("sign_change_time", 14.5, 0.2, "s", n=10)
-    b = FitResult("onset_time", 2.6, 0.05, "s")
-    d = lag(a, b)
-    assert d.value == pytest.approx(11.9) and d.fit_error == pytest.approx(np.hypot(0.2, 0.05))
-    assert lag(a, 5.0).fit_error == 0.2
-
-
 def _replicas(rng, R, t, mean_vertex=2.6):
     a = rng.normal(mean_vertex, 0.3, size=(R, 1))
     return 5 + 3 * (t - a) ** 2 + 0.5 * rng.normal(size=(R, t.size))
@@ -157,26 +119,6 @@ def test_bootstrap_batches_width_matches_replica_bootstrap():
     assert bat.std[0] == pytest.approx(rep.std[0], rel=0.25)
 
 
-def test_minimum_refuses_a_maximum_and_a_vertex_outside_the_window():
-    """Only an upward parabola with its vertex inside the window is an onset (a minimum)."""
-    t = T_GRID
-    rng = np.random.default_rng(3)
-    noise = 0.01 * rng.standard_normal(t.size)
-    up = 0.2 + 0.05 * (t - 2.6) ** 2 + noise
-    down = 0.2 - 0.05 * (t - 2.6) ** 2 + noise
-    rising = 0.2 + 0.05 * (t - 0.2) ** 2 + noise  # vertex at 0.2 s, window 1-4 s
-    Y = np.stack([up, down, rising])
-    value, err, c2, c2_err, reason, _ = minimum_times(t, Y, (1.0, 4.0))
-    assert list(reason) == [0, 2, 3]
-    assert value[0] == pytest.approx(2.6, abs=5 * err[0]) and np.isnan(value[1:]).all()
-    # the curvature is reported with its error either way, and its sign is significant
-    assert c2[0] == pytest.approx(0.05, abs=5 * c2_err[0]) and c2[1] < -10 * c2_err[1]
-    refused = vertex_time(t, down, (1.0, 4.0), require_minimum=True)
-    assert np.isnan(refused.value) and "maximum" in refused.note
-    plain = vertex_time(t, down, (1.0, 4.0))
-    assert plain.value == pytest.approx(2.6, abs=0.05) and plain.note == ""
-
-
 def test_first_crossing_with_hold_skips_noise_crossings():
     """A line through zero at t = 4 with a dip below zero after an early noise crossing at
     t = 1: without hold the first upward crossing is the noise one, with a hold of 0.5 the
@@ -190,14 +132,3 @@ def test_first_crossing_with_hold_skips_noise_crossings():
     Y = np.stack([y, -np.abs(y) - 0.01])
     got = first_crossing(t, Y, (0.0, 8.0), +1, hold=50)
     assert got[0] == pytest.approx(4.0) and np.isnan(got[1])
-
-
-def test_sign_change_refuses_an_extrapolated_zero_and_the_wrong_direction():
-    t = T_GRID
-    rising = 0.5 * (t - 4.5)
-    Y = np.stack([rising, -rising, 0.5 * (t - 0.2)])
-    value, err, reason, _ = sign_change_times(t, Y, (3.0, 5.5), direction=+1)
-    assert list(reason) == [0, 2, 3]
-    assert value[0] == pytest.approx(4.5) and np.isnan(value[1:]).all()
-    v_any, _, r_any, _ = sign_change_times(t, Y, (3.0, 5.5), direction=0)
-    assert list(r_any) == [0, 0, 3] and v_any[1] == pytest.approx(4.5)

@@ -1,4 +1,4 @@
-"""Drum analysis glue: batches → ensemble → fitted times (docs/drum.md, "Analysis").
+"""Drum fits: batches → ensemble → fitted times (docs/drum.md, "Analysis").
 
 The generic pieces live in :mod:`granpipe.analysis` (streaming reduction,
 moving average and low-pass, windowed fits, bootstrap); this module wires them
@@ -40,20 +40,16 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from ..analysis.ensemble import EnsembleAccumulator
-from ..analysis.fits import (
-    SIGN_CHANGE_REASONS,
+from ..analysis.bootstrap import (
     FitResult,
     argmin_time,
     bootstrap_batches,
     bootstrap_replicas,
     first_crossing,
-    lag,
-    minimum_times,
-    sign_change_times,
-    vertex_time,
-    zero_crossing_time,
+    vertex_times,
+    zero_crossing_times,
 )
+from ..analysis.ensemble import EnsembleAccumulator
 from ..analysis.smoothing import (
     lowpass_fft,
     moving_average,
@@ -71,6 +67,13 @@ __all__ = [
     "load_units",
     "smoothed_series",
     "drum_fits",
+    "vertex_time",
+    "zero_crossing_time",
+    "lag",
+    "minimum_times",
+    "sign_change_times",
+    "MINIMUM_REASONS",
+    "SIGN_CHANGE_REASONS",
 ]
 
 WINDOWS = ("onset", "decay")
@@ -337,7 +340,7 @@ def _fit_curve(t, res: FitResult, deg: int) -> np.ndarray:
 
 
 def _boot(units: Units, statistic, cfg):
-    """Joint bootstrap of (V, λ) over replicas or batch means (analysis.fits)."""
+    """Joint bootstrap of (V, λ) over replicas or batch means (granpipe.analysis.bootstrap)."""
     kw = dict(
         n_resamples=int(cfg["bootstrap_resamples"]),
         level=float(cfg["confidence"]),
@@ -658,3 +661,266 @@ def _crossings(ens, curves, units, q, stop, cfg, onset_auto) -> list[FitResult]:
                       method=f"first zero crossing of the FFT low-pass {held}")
         )  # fmt: skip
     return out
+
+
+# ----------------------------------- onset, sign changes and lags (Sec. III)
+MINIMUM_REASONS = {
+    0: "",
+    1: "too few points in the window for a quadratic fit",
+    2: "the fitted parabola has no positive curvature: its vertex is a maximum",
+    3: "the vertex lies outside the fit window",
+}
+"""Codes of :func:`minimum_times`: why a vertex was not accepted as a minimum."""
+
+
+def minimum_times(t, Y, window, sigma=None, *, t_ref=None, error_scale="auto"):
+    """Vertices of quadratic fits accepted only as minima inside their windows.
+
+    A vertex is a minimum of V only if the curvature c₂ > 0 and it lies within the fit
+    window [t_lo, t_hi]; otherwise its value is NaN and ``reason`` says why
+    (:data:`MINIMUM_REASONS`).
+
+    Returns
+    -------
+    value, fit_error : (...,) [time]
+    curvature, curvature_error : (...,) [Y/time²], the fitted c₂ and its standard error
+    reason : (...,) int
+    extras : dict as :func:`vertex_times`
+    """
+    value, err, ex = vertex_times(t, Y, window, sigma, t_ref=t_ref, error_scale=error_scale)
+    c2 = ex["coef"][..., 2]
+    with np.errstate(invalid="ignore"):
+        c2_err = np.sqrt(ex["cov"][..., 2, 2])
+    lo = np.asarray(window[0], dtype=np.float64)
+    hi = np.asarray(window[1], dtype=np.float64)
+    reason = np.where(
+        ~np.isfinite(c2),
+        1,
+        np.where(c2 <= 0, 2, np.where((value < lo) | (value > hi) | ~np.isfinite(value), 3, 0)),
+    )
+    value = np.where(reason == 0, value, np.nan)
+    err = np.where(reason == 0, err, np.nan)
+    return value, err, c2, c2_err, reason, ex
+
+
+SIGN_CHANGE_REASONS = {
+    0: "",
+    1: "too few points in the window for a linear fit",
+    2: "the fitted line changes sign the other way",
+    3: "the zero of the fitted line lies outside the fit window",
+}
+"""Codes of :func:`sign_change_times`: why a zero was not accepted as the sign change."""
+
+
+def sign_change_times(t, Y, window, sigma=None, *, direction=0, t_ref=None, error_scale="auto"):
+    """Zeros of linear fits accepted only as sign changes inside their windows.
+
+    The zero counts only if the fitted slope has the sign ``direction`` (+1 rising, −1
+    falling, 0 either) and the zero lies within the fit window; otherwise the value is
+    NaN and ``reason`` says why (:data:`SIGN_CHANGE_REASONS`). An extrapolated zero
+    says where a straight line would cross, not where λ did.
+
+    Returns
+    -------
+    value, fit_error : (...,) [time]; reason : (...,) int; extras : dict as
+    :func:`zero_crossing_times`
+    """
+    value, err, ex = zero_crossing_times(t, Y, window, sigma, t_ref=t_ref, error_scale=error_scale)
+    c1 = ex["coef"][..., 1]
+    lo = np.asarray(window[0], dtype=np.float64)
+    hi = np.asarray(window[1], dtype=np.float64)
+    wrong = (np.sign(c1) != direction) if direction else np.zeros(np.shape(c1), dtype=bool)
+    with np.errstate(invalid="ignore"):
+        outside = (value < lo) | (value > hi) | ~np.isfinite(value)
+    reason = np.where(~np.isfinite(c1), 1, np.where(wrong, 2, np.where(outside, 3, 0)))
+    value = np.where(reason == 0, value, np.nan)
+    err = np.where(reason == 0, err, np.nan)
+    return value, err, reason, ex
+
+
+def _resolve_window(kind, t, Y, window, half_width, search, smooth_q, direction):
+    """(lo, hi) arrays (or floats) of the fit window; ``window="auto"`` centres it."""
+    if isinstance(window, str):
+        if window != "auto":
+            raise ValueError("window must be (t_lo, t_hi) or 'auto'")
+        if half_width is None:
+            raise ValueError("window='auto' needs half_width")
+        if kind == "vertex":
+            centre = argmin_time(t, Y, search, smooth_q)
+        else:
+            Ys = moving_average(Y, smooth_q) if smooth_q else Y
+            centre = first_crossing(t, Ys, search, direction)
+        return centre - half_width, centre + half_width, centre
+    lo, hi = float(window[0]), float(window[1])
+    if not hi > lo:
+        raise ValueError(f"empty fit window {window}")
+    return lo, hi, None
+
+
+def _scalar_fit(
+    kind,
+    t,
+    y,
+    window,
+    sigma,
+    *,
+    half_width,
+    search,
+    smooth_q,
+    direction,
+    quantity,
+    unit,
+    error_scale,
+    n,
+    require_minimum=False,
+):
+    y = np.asarray(y, dtype=np.float64)
+    if y.ndim != 1:
+        raise ValueError("y must be (time,); use vertex_times/zero_crossing_times for batches")
+    lo, hi, _ = _resolve_window(kind, t, y, window, half_width, search, smooth_q, direction)
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        what = "no minimum in the search range" if kind == "vertex" else "no zero crossing"
+        return FitResult(quantity, math.nan, math.nan, unit, n=n, method=f"{kind}: no window",
+                         note=f"{what}: no window to fit")  # fmt: skip
+    t_ref = 0.5 * (float(lo) + float(hi))
+    note = ""
+    if kind == "vertex" and require_minimum:
+        value, err, _, _, reason, ex = minimum_times(
+            t, y, (lo, hi), sigma, t_ref=t_ref, error_scale=error_scale
+        )
+        note = MINIMUM_REASONS[int(reason)]
+    else:
+        fn = vertex_times if kind == "vertex" else zero_crossing_times
+        value, err, ex = fn(t, y, (lo, hi), sigma, t_ref=t_ref, error_scale=error_scale)
+    return FitResult(
+        quantity=quantity,
+        value=float(value),
+        fit_error=float(err),
+        unit=unit,
+        n=n,
+        window=(float(lo), float(hi)),
+        t_ref=ex["t_ref"],
+        coefficients=ex["coef"],
+        covariance=ex["cov"],
+        chi2_red=float(ex["chi2_red"]),
+        method=("quadratic fit, vertex" if kind == "vertex" else "linear fit, zero crossing")
+        + (" (auto window)" if isinstance(window, str) else ""),
+        note=note,
+    )
+
+
+def vertex_time(
+    t: np.ndarray,
+    y: np.ndarray,
+    window=(1.0, 4.0),
+    sigma: np.ndarray | None = None,
+    *,
+    half_width: float | None = None,
+    search: tuple[float, float] | None = None,
+    smooth_q: int = 0,
+    quantity: str = "onset_time",
+    unit: str = "s",
+    error_scale: str = "auto",
+    n: int | None = None,
+    require_minimum: bool = False,
+) -> FitResult:
+    """Avalanche onset: vertex of a quadratic fit to V(t) (drum paper, Sec. III).
+
+    Parameters
+    ----------
+    t : (T,) float [unit]
+    y : (T,) float, the ensemble-mean global speed V(t) [d_s/t0]
+    window : (t_lo, t_hi) or "auto"
+        Fit window (the paper: 1 s < t < 4 s). ``"auto"``: centred on the minimum
+        of y (after a (2·smooth_q+1)-point moving average) within ``search``,
+        of half-width ``half_width``.
+    sigma : (T,) float, optional
+        SEM of y; weights 1/σ² (see :func:`granpipe.analysis.bootstrap.polyfit_window` for
+        ``error_scale``).
+    n : int, optional
+        Replicas behind y, stored in the result.
+    require_minimum : bool
+        Accept the vertex only as a minimum inside the window (:func:`minimum_times`);
+        otherwise the value is NaN and ``note`` says why.
+    """
+    return _scalar_fit(
+        "vertex",
+        t,
+        y,
+        window,
+        sigma,
+        half_width=half_width,
+        search=search,
+        smooth_q=smooth_q,
+        direction=0,
+        quantity=quantity,
+        unit=unit,
+        error_scale=error_scale,
+        n=n,
+        require_minimum=require_minimum,
+    )
+
+
+def zero_crossing_time(
+    t: np.ndarray,
+    y: np.ndarray,
+    window=(10.0, 20.0),
+    sigma: np.ndarray | None = None,
+    *,
+    half_width: float | None = None,
+    search: tuple[float, float] | None = None,
+    smooth_q: int = 0,
+    direction: int = 0,
+    quantity: str = "sign_change_time",
+    unit: str = "s",
+    error_scale: str = "auto",
+    n: int | None = None,
+) -> FitResult:
+    """Sign change of λ: zero of a linear fit to λ(t) (drum paper, Sec. III).
+
+    Parameters
+    ----------
+    y : (T,) float, the ensemble-mean local Lyapunov exponent λ(t) [1/t0]
+    window : (t_lo, t_hi) or "auto"
+        The paper: 10–20 s (onset), 7–9 s (decay). ``"auto"``: centred on the
+        first zero crossing (``direction``: +1 upward, −1 downward, 0 either) of
+        λ̄, the (2·smooth_q+1)-point moving average of Eq. (2), within ``search``.
+    Other parameters as :func:`vertex_time`.
+    """
+    return _scalar_fit(
+        "zero",
+        t,
+        y,
+        window,
+        sigma,
+        half_width=half_width,
+        search=search,
+        smooth_q=smooth_q,
+        direction=direction,
+        quantity=quantity,
+        unit=unit,
+        error_scale=error_scale,
+        n=n,
+    )
+
+
+def lag(sign_change: FitResult, change_of_state: FitResult | float, quantity: str = "lag"):
+    """Lag = sign-change time − change-of-state time (drum paper, Sec. III).
+
+    ``change_of_state`` is the onset :class:`FitResult`, or a number for a state
+    change imposed exactly (the decay starts at 5 s: error 0). The fit errors
+    are combined in quadrature, which ignores their correlation (both fits use
+    the same replicas); :func:`avalanche_lag` gives a joint bootstrap interval.
+    """
+    if isinstance(change_of_state, FitResult):
+        v0, e0 = change_of_state.value, change_of_state.fit_error
+    else:
+        v0, e0 = float(change_of_state), 0.0
+    return FitResult(
+        quantity=quantity,
+        value=sign_change.value - v0,
+        fit_error=math.hypot(sign_change.fit_error, e0),
+        unit=sign_change.unit,
+        n=sign_change.n,
+        method="sign change minus change of state",
+    )

@@ -1,0 +1,61 @@
+"""The drum config section (seeding subset, checks naming the key, parameter points) and
+the file layout."""
+
+import pytest
+
+from granpipe.drum import layout
+from granpipe.drum.layout import filled, point_label, points, seed_physics
+from granpipe.errors import ConfigError
+
+
+def test_seed_subset_excludes_sample_sizes_and_analysis():
+    a = seed_physics({"ensemble": {"n_replicas": 10}, "fits": {"seed": 3}})
+    b = seed_physics({"ensemble": {"n_replicas": 99}})
+    # the paper start-up does not depend on the settling keys, nor on the overlap bound
+    assert a == b and set(a) == {"physics", "protocol"} and "max_overlap" not in a["physics"]
+    assert seed_physics({"settle": {"max_speed": 3.0}, "physics": {"max_overlap": 0.9}}) == a
+    c = seed_physics({"protocol": {"block_s": 0.008}})
+    assert c != a
+    settled = seed_physics({"protocol": {"startup": "settled"}})
+    assert set(settled) == {"physics", "settle", "protocol"}
+    assert seed_physics({"protocol": {"startup": "settled"}, "settle": {"max_speed": 3}}) != settled
+
+
+def test_bad_windows_and_keys_name_the_key():
+    with pytest.raises(ConfigError, match="onset_zero_window_s"):
+        filled({"fits": {"onset_zero_window_s": [20.0, 10.0]}})
+    with pytest.raises(ConfigError, match="not_a_key"):
+        filled({"physics": {"not_a_key": 1}})
+    with pytest.raises(ConfigError, match="dt"):
+        filled({"physics": {"dt": 0.0}})
+
+
+def test_layout_batches_and_files():
+    sec = {"ensemble": {"n_replicas": 5, "batch_size": 2}}
+    assert layout.point_name(sec) == "N=736,period=900s,startup=paper"
+    assert layout.batch_ids(sec) == ["0000", "0001", "0002"]  # whole batches: 6 replicas
+    files = layout.run_files(sec)
+    assert files[0] == "runs/N=736,period=900s,startup=paper/batch_0000.nc" and len(files) == 3
+    assert layout.init_files(sec)[2].startswith("init/")
+    grown = layout.run_files({"ensemble": {"n_replicas": 9, "batch_size": 2}})
+    assert grown[:3] == files  # a larger ensemble only appends batches
+    assert len(layout.figure_files()) == 12
+
+
+def test_points_vary_one_key_at_a_time_from_the_reference():
+    sec = {"physics": {"period_s": [900.0, 450.0, 225.0]},
+           "protocol": {"startup": ["paper", "settled"]}}  # fmt: skip
+    pts = points(sec)
+    got = [(p["physics"]["period_s"], p["protocol"]["startup"]) for p in pts]
+    assert got == [(900.0, "paper"), (450.0, "paper"), (225.0, "paper"), (900.0, "settled")]
+    assert [point_label(p, sec) for p in pts] == [
+        "", "[period=450s]", "[period=225s]", "[startup=settled]"
+    ]  # fmt: skip
+    prod = points({**sec, "design": "product"})
+    assert len(prod) == 6 and len({layout.point_name(p) for p in prod}) == 6
+    # a point's simulation subset does not depend on the other entries of the lists
+    alone = layout.rule_params({"physics": {"period_s": 450.0}})["sim"]
+    listed = layout.rule_params(sec)["sim"]
+    assert alone["N=736,period=450s,startup=paper"] == listed["N=736,period=450s,startup=paper"]
+    with pytest.raises(ConfigError, match="period_s"):
+        filled({"physics": {"period_s": [900.0, -1.0]}})
