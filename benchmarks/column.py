@@ -14,7 +14,7 @@ import numpy as np
 
 from granpipe.column import continuum as cont
 from granpipe.column import discrete as d
-from granpipe.column.params import parameter_set
+from granpipe.column.model import parameter_set
 
 
 def per_tap(p, n=4, tangent=False):

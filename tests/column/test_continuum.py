@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from granpipe.column import continuum as c
-from granpipe.column.params import ColumnParams, parameter_set
+from granpipe.column.model import ColumnParams, parameter_set
 
 P = parameter_set("figure1_N10")
 S = 2 * P.N * P.r
@@ -235,7 +235,7 @@ def test_bsr_derived_point_kernel_on_the_particle_labels_is_the_smooth_chain():
 def test_bsr_derived_converges_under_refinement():
     """On the Fig. 2 problem (the long tap) successive differences of the smooth-kernel
     model shrink at an order near 1.5 (measured 1.4) and the material stays ordered."""
-    from granpipe.column.study import physics
+    from granpipe.column.model import physics
 
     fig2 = {"N": 10, "m": 1.0, "r": 1.0, "g": 980.67, "stiffness_factor": 2.0, "e": 0.09,
             "a": 1.06, "tap_duration": 0.5, "T": 1.0}  # fmt: skip

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from granpipe.column import discrete as d
-from granpipe.column.params import (
+from granpipe.column.model import (
     ColumnParams,
     e_from_restitution,
     equilibrium_positions,

@@ -247,7 +247,7 @@ def test_relaxation_ensemble_streams_to_the_pooled_moments():
     """Batches merged one at a time (a generator) give the moments of all replicas pooled."""
     import xarray as xr
 
-    from granpipe.column.study import relaxation_ensemble
+    from granpipe.column.measures import relaxation_ensemble
 
     rng = np.random.default_rng(3)
     sizes = (3, 1, 4)

@@ -1,6 +1,8 @@
 """``granpipe column <stage>``: the column study's workflow stages (docs/architecture.md).
 
-Stage map (outputs under ``results/<scale>/column/``):
+Each command takes ``--params JSON`` (the exact config subset its rule depends on) and
+input/output paths; the functions behind the commands live in
+:mod:`granpipe.column.stages`. Stage map (outputs under ``results/<scale>/column/``):
 
 * runs:     ``trajectories`` (Fig. 1 columns), ``relaxation`` (one batch of replicas),
             ``chaos`` (one (a, T) point of the map: Lyapunov exponents and return-map
@@ -17,10 +19,6 @@ perturbed per replica inside the runs.
 
 from __future__ import annotations
 
-import sys
-import time
-from pathlib import Path
-
 import click
 
 from ..cli import params_option
@@ -30,103 +28,15 @@ cli = click.Group(
 )
 
 
-def _log(msg):
-    click.echo(f"[column {time.strftime('%H:%M:%S')}] {msg}", err=True)
-    sys.stderr.flush()
-
-
-def _write(ds, out, params, seeds=None, **attrs):
-    from ..io import write_dataset
-
-    write_dataset(ds, out, config_subset=params, seeds=seeds, study="column", **attrs)
-    _log(f"wrote {out}")
-
-
-def _inputs(paths, stage, kind):
-    """Read column files and check that each is a ``stage`` file of ``kind``.
-
-    Raises RunFileError naming the file: unreadable, from another study, stage or kind.
-    """
-    from ..io import expect_attrs, read_dataset
-
-    out = []
-    for p in paths:
-        ds = read_dataset(p)
-        expect_attrs(ds, p, study="column", stage=stage, kind=kind)
-        out.append(ds)
-    return out
-
-
-def _same_physics(datasets, paths, ignore=()):
-    """Refuse (naming the file) datasets whose config physics differ beyond ``ignore``."""
-    from ..io import RunFileError, config_from_attrs
-
-    ref = None
-    for ds, p in zip(datasets, paths, strict=True):
-        phys = dict(config_from_attrs(ds).get("physics", {}))
-        for k in ignore:
-            phys.pop(k, None)
-        if ref is None:
-            ref = (phys, p)
-        elif phys != ref[0]:
-            raise RunFileError(
-                f"{p} was computed for another column than {ref[1]}: physics {phys} "
-                f"against {ref[0]}"
-            )
-
-
-def _reduced_inputs(relax_path, chaos_path, cont_path, conv_path):
-    """The fits' and figures' inputs, each checked to be the file its option names, the
-    continuum and convergence runs of one column (RunFileError names the file)."""
-    (ens,) = _inputs([relax_path], "ensemble", "relaxation")
-    (cmap,) = _inputs([chaos_path], "ensemble", "chaos")
-    (comp,) = _inputs([cont_path], "runs", "continuum")
-    (conv,) = _inputs([conv_path], "runs", "convergence")
-    _same_physics([comp, conv], [cont_path, conv_path])
-    return ens, cmap, comp, conv
-
-
-def _check_chaos_points(datasets, paths):
-    """Chaos points: one file per (a, T), its name (if a=..,T=..) matching its content,
-    the same column otherwise, and no replica twice in a file (RunFileError names it)."""
-    import re
-
-    from ..io import RunFileError
-
-    seen = {}
-    for ds, p in zip(datasets, paths, strict=True):
-        key = (float(ds.attrs["a"]), float(ds.attrs["T"]))
-        m = re.fullmatch(r"a=([0-9.e+-]+),T=([0-9.e+-]+)", Path(p).stem)
-        if m and (float(m.group(1)), float(m.group(2))) != key:
-            raise RunFileError(f"{p} holds the point a={key[0]:g}, T={key[1]:g}, not its name's")
-        if key in seen:
-            raise RunFileError(
-                f"the point a={key[0]:g}, T={key[1]:g} appears twice: {seen[key]}, {p}"
-            )
-        seen[key] = p
-        reps = ds["replica"].values
-        if len(set(reps.tolist())) != reps.size:
-            raise RunFileError(f"{p}: a replica appears twice in the point")
-    _same_physics(datasets, paths, ignore=("a", "T"))
-
-
 @cli.command("trajectories")
 @params_option
 @click.option("--set", "set_name", required=True, help="Name of the column in params['sets'].")
 @click.option("--out", required=True, type=click.Path(dir_okay=False))
 def trajectories_cmd(params, set_name, out):
     """Fig. 1: y_i(t) of one column over the configured taps from the equilibrium start."""
-    from .study import trajectories
+    from .stages import trajectories_stage
 
-    t0 = time.time()
-    ds = trajectories(
-        params["sets"][set_name],
-        int(params["n_taps"]),
-        float(params["record_dt"]),
-        float(params["step_factor"]),
-    )
-    ds.attrs["set"] = set_name
-    _write(ds, out, params, stage="runs", kind="trajectories", wall_time_s=time.time() - t0)
+    trajectories_stage(params, set_name, out)
 
 
 @cli.command("relaxation")
@@ -135,31 +45,9 @@ def trajectories_cmd(params, set_name, out):
 @click.option("--out", required=True, type=click.Path(dir_okay=False))
 def relaxation_cmd(params, batch, out):
     """Density relaxation: one batch of perturbed starts over many taps."""
-    from ..seeds import batch_replicas
-    from .study import relaxation_batch
+    from .stages import relaxation_stage
 
-    t0 = time.time()
-    # a batch is always full, so that n_replicas only adds batches (docs/architecture.md,
-    # "Seeds, batches, growing ensembles")
-    reps = list(batch_replicas(batch, int(params["batch_size"])))
-    _log(f"relaxation batch {batch}: replicas {reps}, {params['n_taps']} taps")
-    ds, seeds = relaxation_batch(
-        params["physics"],
-        reps,
-        int(params["n_taps"]),
-        float(params["perturbation"]),
-        float(params["step_factor"]),
-    )
-    _write(
-        ds,
-        out,
-        params,
-        seeds=seeds,
-        stage="runs",
-        kind="relaxation",
-        batch=batch,
-        wall_time_s=time.time() - t0,
-    )
+    relaxation_stage(params, batch, out)
 
 
 @cli.command("chaos")
@@ -169,37 +57,9 @@ def relaxation_cmd(params, batch, out):
 @click.option("--out", required=True, type=click.Path(dir_okay=False))
 def chaos_cmd(params, amplitude, period, out):
     """One point of the chaos map: largest Lyapunov exponents and return-map periods."""
-    from .study import lyapunov_point
+    from .stages import chaos_stage
 
-    t0 = time.time()
-    phys = {**params["physics"], "a": amplitude, "T": period}
-    ds, seeds = lyapunov_point(
-        phys,
-        range(int(params["n_replicas"])),
-        int(params["transient_taps"]),
-        int(params["taps"]),
-        float(params["perturbation"]),
-        float(params["twin_epsilon"]),
-        bool(params["plain"]),
-        float(params["step_factor"]),
-        int(params.get("return_max_period", 6)),
-        int(params.get("return_taps", 12)),
-        float(params.get("return_tolerance", 1e-6)),
-    )
-    _log(
-        f"a={amplitude:g} T={period:g}: lambda/tap = {ds['lambda_tap'].values.round(3).tolist()}"
-        f" twin {ds['lambda_twin'].values.round(3).tolist()}"
-        f" return-map periods {ds['return_period'].values.tolist()}"
-    )
-    _write(
-        ds,
-        out,
-        {**params, "physics": phys},
-        seeds=seeds,
-        stage="runs",
-        kind="chaos",
-        wall_time_s=time.time() - t0,
-    )
+    chaos_stage(params, amplitude, period, out)
 
 
 @cli.command("continuum")
@@ -207,22 +67,9 @@ def chaos_cmd(params, amplitude, period, out):
 @click.option("--out", required=True, type=click.Path(dir_okay=False))
 def continuum_cmd(params, out):
     """Fig. 2 data: discrete column, L-W and BSR solutions and their distances."""
-    from .study import continuum_comparison
+    from .stages import continuum_stage
 
-    t0 = time.time()
-    ds, dist = continuum_comparison(
-        params["physics"],
-        int(params["n_taps"]),
-        int(params["lw_refinement"]),
-        int(params["bsr_refinement"]),
-        float(params["record_dt"]),
-        float(params["sigma_width"]),
-        float(params["step_factor"]),
-        int(params["bsr_derived_refinement"]),
-        float(params["bsr_kernel_width"]),
-    )
-    _log(f"distances to the discrete column [h] (positions, displacements, relative): {dist}")
-    _write(ds, out, params, stage="runs", kind="continuum", wall_time_s=time.time() - t0)
+    continuum_stage(params, out)
 
 
 @cli.command("convergence")
@@ -230,25 +77,9 @@ def continuum_cmd(params, out):
 @click.option("--out", required=True, type=click.Path(dir_okay=False))
 def convergence_cmd(params, out):
     """Both continuum solvers under grid refinement on the Fig. 2 problem."""
-    from .study import continuum_convergence
+    from .stages import convergence_stage
 
-    t0 = time.time()
-    c = params["convergence"]
-    ds = continuum_convergence(
-        params["physics"],
-        float(c["t_end"]),
-        c["lw_refinements"],
-        c["bsr_refinements"],
-        float(c["bsr_t_end"]),
-        float(params["sigma_width"]),
-        float(params["step_factor"]),
-        c["bsr_derived_refinements"],
-        float(params["bsr_kernel_width"]),
-        [float(w) for w in c["sigma_widths"]],
-        int(c["sigma_scan_refinement"]),
-    )
-    _log("observed orders: " + ", ".join(f"{k}: {v}" for k, v in ds.attrs.items() if "orders" in k))
-    _write(ds, out, params, stage="runs", kind="convergence", wall_time_s=time.time() - t0)
+    convergence_stage(params, out)
 
 
 @cli.command("ensemble")
@@ -258,19 +89,9 @@ def convergence_cmd(params, out):
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=True))
 def ensemble_cmd(params, kind, out, inputs):
     """Reduce run files: relaxation batches → per-tap statistics; chaos points → the map."""
-    from ..io import check_run_files
-    from .study import chaos_map, relaxation_ensemble
+    from .stages import ensemble_stage
 
-    if kind == "relaxation":
-        # one column, batches named as they hold, no replica twice
-        check_run_files(inputs, study="column")
-    if kind == "relaxation":  # streamed: one batch file in memory at a time
-        ds = relaxation_ensemble(_inputs([p], "runs", kind)[0] for p in inputs)
-    else:
-        datasets = _inputs(inputs, "runs", kind)
-        _check_chaos_points(datasets, inputs)
-        ds = chaos_map(datasets, float(params.get("confidence", 0.95)))
-    _write(ds, out, params, stage="ensemble", kind=kind)
+    ensemble_stage(params, kind, out, inputs)
 
 
 @cli.command("fits")
@@ -284,38 +105,9 @@ def ensemble_cmd(params, kind, out, inputs):
 @click.option("--out-note", required=True, type=click.Path(dir_okay=False))
 def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_nc, out_note):
     """Relaxation fit, chaos thresholds, continuum distances: summary.csv rows and a note."""
-    import xarray as xr
+    from .stages import fits_stage
 
-    from ..analysis.summary import write_summary
-    from ..io import write_text
-    from .fits import summary_rows, theorem1_note
-    from .study import relaxation_fit
-
-    ens, cmap, comp, conv = _reduced_inputs(relax_path, chaos_path, cont_path, conv_path)
-    units = params.get("units", {"length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s"})
-    fit = relaxation_fit(ens, int(params.get("n_boot", 1000)))
-    rows, thresholds = summary_rows(fit, cmap, comp, conv, units)
-    # the column's own file: rewritten whole (merge=False), so a dropped grid point leaves
-    write_summary(rows, out_csv, merge=False)
-    _log(f"wrote {out_csv} ({len(rows)} rows)")
-    fds = xr.Dataset(
-        {
-            "chaos_onset_amplitude": (
-                "T",
-                thresholds,
-                {
-                    "units": units["length"],
-                    "long_name": "smallest amplitude with a chaotic point (NaN: none)",
-                },
-            )
-        },
-        coords={"T": ("T", cmap["T"].values, {"units": units["time"], "long_name": "tap period"})},
-        attrs={f"relaxation_{k}": float(v[0]) for k, v in fit.items()},
-    )
-    _write(fds, out_nc, params, stage="fits")
-    note = theorem1_note(cmap, comp, conv, units, fit)
-    write_text(note, out_note)
-    click.echo(note)
+    fits_stage(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_nc, out_note)
 
 
 @cli.command("figures")
@@ -328,31 +120,6 @@ def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_
 @click.option("--outdir", required=True, type=click.Path(file_okay=False))
 def figures_cmd(params, traj, cont_path, relax_path, chaos_path, conv_path, outdir):
     """Figures 1–6 as PNG and PDF: fig<k>_<name>.{png,pdf}."""
-    from ..figures import column as F
-    from ..figures import save_figure
-    from .study import relaxation_fit
+    from .stages import figures_stage
 
-    out = Path(outdir)
-    out.mkdir(parents=True, exist_ok=True)
-    units = params.get("units", {"length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s"})
-    ens, cmap, comp, conv = _reduced_inputs(relax_path, chaos_path, cont_path, conv_path)
-    made = []
-    made += save_figure(
-        F.fig1_trajectories(_inputs(traj, "runs", "trajectories"), units["fig2_length"]),
-        out / "fig1_trajectories",
-    )
-    made += save_figure(F.fig2_continuum(comp), out / "fig2_continuum")
-    made += save_figure(
-        F.fig3_density_relaxation(ens, relaxation_fit(ens, 200), f"kg/{units['length']}"),
-        out / "fig3_density_relaxation",
-    )
-    made += save_figure(
-        F.fig4_chaos_map(cmap, units["length"], units["time"]), out / "fig4_chaos_map"
-    )
-    made += save_figure(
-        F.fig5_continuum_convergence(conv),
-        out / "fig5_continuum_convergence",
-    )
-    made += save_figure(F.fig6_lyapunov_estimates(cmap), out / "fig6_lyapunov_estimates")
-    for m in made:
-        _log(f"wrote {m}")
+    figures_stage(params, traj, cont_path, relax_path, chaos_path, conv_path, outdir)

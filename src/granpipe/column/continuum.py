@@ -77,7 +77,7 @@ import math
 import numpy as np
 
 from .._jit import njit
-from .params import ColumnParams
+from .model import ColumnParams
 
 __all__ = [
     "LongWaveCoefficients",
@@ -667,7 +667,7 @@ def solve_bsr(
     dict: ``z`` (n,) cell centres, ``t``, ``u`` (n_t, n) [length/time], ``rho`` (n_t, n)
     [mass/length], ``tracers`` (n_t, n_tr) [length], ``collapse_time`` [time] or NaN.
     """
-    from .params import equilibrium_positions
+    from .model import equilibrium_positions
 
     S = 2 * p.N * p.r
     Z = S + 4 * p.h if height is None else float(height)

@@ -1095,7 +1095,7 @@ def smooth_equilibrium(p) -> np.ndarray:
     Returns (N,) float64 [length]; reduces to :func:`params.equilibrium_positions` as
     α_χ → ∞.
     """
-    from .params import equilibrium_positions
+    from .model import equilibrium_positions
 
     y = equilibrium_positions(p)  # also checks 𝔐 < r/N
     weights = p.m * p.g * np.arange(p.N, 0, -1, dtype=np.float64)  # contact j carries N−j
@@ -1125,7 +1125,7 @@ def initial_state(p, perturbation=None) -> ColumnState:
         Added to the rest positions (the column then starts slightly off equilibrium; every
         contact stays stuck while its force remains inside the hysteresis band).
     """
-    from .params import equilibrium_positions
+    from .model import equilibrium_positions
 
     y = smooth_equilibrium(p) if p.smooth else equilibrium_positions(p)
     if perturbation is not None:

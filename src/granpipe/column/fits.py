@@ -1,9 +1,10 @@
-"""Column fits and the note: summary rows of every stage and their reading against the paper.
+"""Column fits and the note: the relaxation fit, summary rows of every stage and their
+reading against the paper.
 
-The relaxation fit itself is :func:`granpipe.column.study.relaxation_fit`; here its rows,
-the chaos map's rows (exponents, return-map periods, thresholds), the continuum
-comparison's rows (docs/column.md, "What the comparison shows") and the plain-text note
-that reads them against Theorem 1 and Fig. 2.
+:func:`relaxation_fit` fits the relaxation ensemble; then its rows, the chaos map's rows
+(exponents, return-map periods, thresholds), the continuum comparison's rows
+(docs/column.md, "What the comparison shows") and the plain-text note that reads them
+against Theorem 1 and Fig. 2.
 """
 
 from __future__ import annotations
@@ -16,16 +17,23 @@ import xarray as xr
 
 from ..analysis.summary import summary_row
 from . import continuum as cont
-from .params import ColumnParams
-from .study import CONTINUUM_MODELS, MODEL_NAMES, SMOOTH_CHAIN, TOP_TREATMENTS
+from .measures import t_interval
+from .model import ColumnParams
+from .protocol import CONTINUUM_MODELS, MODEL_NAMES, SMOOTH_CHAIN, TOP_TREATMENTS
 
-__all__ = ["summary_rows", "theorem1_note", "continuum_rows", "continuum_note"]
+__all__ = [
+    "relaxation_fit",
+    "summary_rows",
+    "theorem1_note",
+    "continuum_rows",
+    "continuum_note",
+]
 
 
 def summary_rows(fit: Mapping, cmap: xr.Dataset, comp: xr.Dataset, conv: xr.Dataset, units):
     """Every summary row of the column and the chaos thresholds per period.
 
-    ``fit``: :func:`~granpipe.column.study.relaxation_fit`; ``cmap``: the chaos map;
+    ``fit``: :func:`relaxation_fit`; ``cmap``: the chaos map;
     ``comp``/``conv``: the continuum comparison and convergence runs; ``units``: the
     config's unit names. Returns (rows, thresholds (n_T,) [length]).
     """
@@ -502,3 +510,54 @@ def continuum_note(comp: xr.Dataset, conv: xr.Dataset, units: Mapping) -> list[s
         + " (the chain's: 1)."
     )
     return lines
+
+
+# -------------------------------------------------------- the relaxation fit
+def relaxation_fit(ens: xr.Dataset, n_boot: int = 1000, seed: int = 0, confidence=0.95):
+    """What the taps do to the rest density, with Student-t intervals over replicas.
+
+    * ``relaxed_density``: mean over the second half of the taps (per replica, then over
+      replicas);
+    * ``density_change``: that minus the replica's start (paired);
+    * ``density_trend``: least-squares slope per tap over the second half (a drift left
+      there means the run is still relaxing);
+    * ``relaxation_taps``: taps until the replica-mean curve first enters the band
+      relaxed ± 2 standard errors (NaN if it starts there);
+    * ``band_position``: where the relaxed density sits in the stick band (0 = loosest,
+      1 = densest rest state, see :func:`stick_band_densities`).
+
+    Returns a dict quantity -> (value, unit, fit_error, ci_low, ci_high, n). ``n_boot`` and
+    ``seed`` are kept for interface stability (the intervals are t-intervals).
+    """
+    rep = ens["density_replicas"].values
+    taps = ens["tap"].values.astype(float)
+    late = taps >= max(1.0, taps[-1] / 2)
+    unit = "mass/length"
+    per_rep = np.nanmean(rep[:, late], axis=1)
+    m, lo, hi, n = t_interval(per_rep, confidence)
+    dm, dlo, dhi, _ = t_interval(per_rep - rep[:, 0], confidence)
+    slopes = np.array([np.polyfit(taps[late], r[late], 1)[0] for r in rep])
+    sm, slo, shi, _ = t_interval(slopes, confidence)
+    mean_curve = np.nanmean(rep, axis=0)
+    sem = (hi - lo) / 2 if np.isfinite(hi) else 0.0
+    inside = np.abs(mean_curve - m) <= 2 * sem
+    tau = float(taps[np.argmax(inside)]) if inside.any() and not inside[0] else np.nan
+    out = {
+        "relaxed_density": (m, unit, np.nan, lo, hi, n),
+        "density_change": (dm, unit, np.nan, dlo, dhi, n),
+        "density_trend": (sm, unit + "/tap", np.nan, slo, shi, n),
+        "relaxation_taps": (tau, "taps", np.nan, np.nan, np.nan, n),
+    }
+    a = ens.attrs
+    if "density_band_low" in a:
+        width = a["density_band_high"] - a["density_band_low"]
+        out["band_position"] = (
+            (m - a["density_band_low"]) / width,
+            "1",
+            np.nan,
+            (lo - a["density_band_low"]) / width,
+            (hi - a["density_band_low"]) / width,
+            n,
+        )
+        out["equilibrium_density"] = (a["density_equilibrium"], unit, np.nan, np.nan, np.nan, 1)
+    return out

@@ -26,6 +26,7 @@ __all__ = [
     "equilibrium_positions",
     "restitution_from_e",
     "e_from_restitution",
+    "physics",
 ]
 
 
@@ -279,3 +280,9 @@ def equilibrium_positions(p: ColumnParams) -> np.ndarray:
         )
     k = np.arange(1, p.N + 1, dtype=np.float64)
     return (2.0 * k - 1.0) * p.r - 0.5 * k * (2.0 * p.N - k + 1.0) * M
+
+
+# ----------------------------------------------------------- from the config
+def physics(mapping: Mapping) -> ColumnParams:
+    """ColumnParams from a config ``physics`` mapping (keys of ColumnParams.from_mapping)."""
+    return ColumnParams.from_mapping(mapping)

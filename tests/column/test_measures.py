@@ -1,16 +1,13 @@
-"""Period of the tap-to-tap return map (Theorem 1): synthetic sequences, a real column."""
+"""Column measures: the period of the tap-to-tap return map (Theorem 1) on synthetic
+sequences and a real column, and its reading in the chaos map and the note."""
 
 import numpy as np
 import pytest
 
 from granpipe.column import discrete as d
-from granpipe.column.study import (
-    chaos_map,
-    lyapunov_point,
-    perturbed_start,
-    physics,
-    return_period,
-)
+from granpipe.column.measures import chaos_map, return_period
+from granpipe.column.model import physics
+from granpipe.column.protocol import lyapunov_point, perturbed_start
 from granpipe.seeds import replica_rng
 from tests.column.test_stages import GENERIC
 
