@@ -1,7 +1,7 @@
 # column study (docs/column.md): runs -> ensemble -> fits -> figures (no init stage: the start is
 # the closed-form equilibrium of Eq. 27, perturbed per replica inside the runs).
 # Rules only call `granpipe column <stage>`; params carry the exact config subset each rule
-# depends on (granpipe.column.layout), so an edit reruns what it touches: a figure-1 column
+# depends on (granpipe.column.layout.rule_params), so an edit reruns what it touches: a figure-1 column
 # reruns its trajectory; relaxation physics/n_taps/batch_size/perturbation rerun the
 # relaxation batches, n_replicas only adds batches; chaos physics and settings rerun the
 # points, the grids add or drop points; confidence -> chaos map onwards; n_boot/units ->
@@ -16,11 +16,10 @@ COLUMN_ON = enabled("column")
 COLUMN_SETS = column_layout.figure_sets(COLUMN) if COLUMN_ON else []
 COLUMN_BATCHES = column_layout.relaxation_batches(COLUMN) if COLUMN_ON else []
 COLUMN_POINTS = column_layout.chaos_points(COLUMN) if COLUMN_ON else []
-COLUMN_RELAX = column_layout.relaxation_params(COLUMN) if COLUMN_ON else {}
-COLUMN_CHAOS = column_layout.chaos_params(COLUMN) if COLUMN_ON else {}
-COLUMN_CONT = column_layout.continuum_params(COLUMN) if COLUMN_ON else {}
-COLUMN_CONV = column_layout.continuum_params(COLUMN, True) if COLUMN_ON else {}
-COLUMN_FITS = column_layout.fits_params(COLUMN) if COLUMN_ON else {}
+# The config subset of each rule, built in granpipe.column.layout.rule_params.
+COLUMN_PARAMS = column_layout.rule_params(COLUMN) if COLUMN_ON else {}
+COLUMN_RELAX = COLUMN_PARAMS.get("relaxation", {})
+COLUMN_CHAOS = COLUMN_PARAMS.get("chaos", {})
 
 
 wildcard_constraints:
@@ -35,7 +34,7 @@ rule column_trajectories:
     output:
         out("column", "runs", "trajectories_{column_set}.nc"),
     params:
-        json=lambda w: as_json(column_layout.trajectory_params(COLUMN, w.column_set)),
+        json=lambda w: as_json(COLUMN_PARAMS["trajectories"][w.column_set]),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -96,7 +95,7 @@ rule column_continuum:
     output:
         out("column", "runs", "continuum.nc"),
     params:
-        json=lambda w: as_json(COLUMN_CONT),
+        json=lambda w: as_json(COLUMN_PARAMS["continuum"]),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -114,7 +113,7 @@ rule column_convergence:
     output:
         out("column", "runs", "convergence.nc"),
     params:
-        json=lambda w: as_json(COLUMN_CONV),
+        json=lambda w: as_json(COLUMN_PARAMS["convergence"]),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -134,7 +133,7 @@ rule column_ensemble_relaxation:
     output:
         out("column", "ensemble", "relaxation.nc"),
     params:
-        json=lambda w: as_json({"kind": "relaxation"}),
+        json=lambda w: as_json(COLUMN_PARAMS["ensemble_relaxation"]),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -155,7 +154,7 @@ rule column_ensemble_chaos:
     output:
         out("column", "ensemble", "chaos_map.nc"),
     params:
-        json=lambda w: as_json({"confidence": COLUMN["chaos"].get("confidence", 0.95)}),
+        json=lambda w: as_json(COLUMN_PARAMS["ensemble_chaos"]),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -185,7 +184,7 @@ rule column_fits:
             caption="../report/column_note.rst",
         ),
     params:
-        json=lambda w: as_json(COLUMN_FITS),
+        json=lambda w: as_json(COLUMN_PARAMS["fits"]),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -220,7 +219,7 @@ rule column_figures:
         ],
         pdf=[out("column", "figures", f"{name}.pdf") for name in column_layout.FIGURES],
     params:
-        json=lambda w: as_json({"units": COLUMN_FITS.get("units", {})}),
+        json=lambda w: as_json(COLUMN_PARAMS["figures"]),
         outdir=lambda w, output: str(Path(output.png[0]).parent),
         traj=lambda w, input: " ".join(
             f"--trajectories {shlex.quote(p)}" for p in input.trajectories

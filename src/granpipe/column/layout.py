@@ -1,7 +1,8 @@
 """Config subsets and file names of the column workflow (used by workflow/rules/column.smk).
 
 Each ``*_params`` function returns exactly the config subset one rule depends on (schema
-defaults filled), so Snakemake's parameter trigger reruns only what an edit touches.
+defaults filled), so Snakemake's parameter trigger reruns only what an edit touches;
+:func:`rule_params` gathers them per rule, as the rule file reads them.
 """
 
 from __future__ import annotations
@@ -20,7 +21,10 @@ __all__ = [
     "chaos_points",
     "chaos_params",
     "continuum_params",
+    "ensemble_params",
     "fits_params",
+    "figures_params",
+    "rule_params",
 ]
 
 FIGURES = (
@@ -174,8 +178,43 @@ def continuum_params(cfg: Mapping, with_convergence: bool = False) -> dict:
     return p
 
 
+def ensemble_params(cfg: Mapping, kind: str) -> dict:
+    """Config subset of an ensemble rule: none for the relaxation batches (the kind only),
+    the interval's confidence for the chaos map."""
+    if kind == "relaxation":
+        return {"kind": "relaxation"}
+    if kind == "chaos":
+        return {"confidence": cfg["chaos"].get("confidence", 0.95)}
+    raise ValueError(f"kind must be 'relaxation' or 'chaos', got {kind!r}")
+
+
 def fits_params(cfg: Mapping) -> dict:
     return {"n_boot": cfg["relaxation"].get("n_boot", 1000), "units": units(cfg)}
+
+
+def figures_params(cfg: Mapping) -> dict:
+    """Config subset of the figures rule: the unit names only."""
+    return {"units": units(cfg)}
+
+
+def rule_params(cfg: Mapping) -> dict[str, dict]:
+    """The config subset each column rule depends on (its ``params:``).
+
+    Keys are the rules' names without ``column_``: ``trajectories`` (a subset per
+    figure-1 column, by name), ``relaxation``, ``chaos``, ``continuum``, ``convergence``,
+    ``ensemble_relaxation``, ``ensemble_chaos``, ``fits`` and ``figures``.
+    """
+    return {
+        "trajectories": {name: trajectory_params(cfg, name) for name in figure_sets(cfg)},
+        "relaxation": relaxation_params(cfg),
+        "chaos": chaos_params(cfg),
+        "continuum": continuum_params(cfg),
+        "convergence": continuum_params(cfg, True),
+        "ensemble_relaxation": ensemble_params(cfg, "relaxation"),
+        "ensemble_chaos": ensemble_params(cfg, "chaos"),
+        "fits": fits_params(cfg),
+        "figures": figures_params(cfg),
+    }
 
 
 def run_files(cfg: Mapping) -> list[str]:
