@@ -59,3 +59,42 @@ def test_points_vary_one_key_at_a_time_from_the_reference():
     assert alone["N=736,period=450s,startup=paper"] == listed["N=736,period=450s,startup=paper"]
     with pytest.raises(ConfigError, match="period_s"):
         filled({"physics": {"period_s": [900.0, -1.0]}})
+
+
+def _count_schema_reads(monkeypatch):
+    """Count the fills of a drum section (each fill asks for the schema once)."""
+    calls = []
+    read = layout._schema
+
+    def counting(*args):
+        calls.append(args)
+        return read(*args)
+
+    monkeypatch.setattr(layout, "_schema", counting)
+    return calls
+
+
+def test_load_fills_once_and_hands_down_a_read_only_section(monkeypatch):
+    calls = _count_schema_reads(monkeypatch)
+    sec = layout.load({"physics": {"period_s": 450.0}})
+    assert len(calls) == 1
+    assert sec["physics"]["period_s"] == 450.0 and sec["physics"]["dt"] > 0
+    # loading, filling, naming, seeding a loaded section never fills it again
+    assert layout.load(sec) is sec
+    assert layout.point_name(sec) == layout.point_name({"physics": {"period_s": 450.0}})
+    calls.clear()
+    seeded = layout.seed_physics(sec)
+    plain = layout.filled(sec)
+    assert calls == []
+    assert seeded == layout.seed_physics(plain)
+    assert plain == layout.filled({"physics": {"period_s": 450.0}})
+    plain["physics"]["dt"] = 1.0  # a mutable copy
+    assert sec["physics"]["dt"] != 1.0
+    with pytest.raises(TypeError):
+        sec["physics"] = {}
+    with pytest.raises(TypeError):
+        sec["physics"]["dt"] = 1.0
+    with pytest.raises(TypeError):
+        sec["fits"]["onset_vertex_window_s"][0] = 0.0
+    with pytest.raises(AttributeError):
+        sec.extra = 1

@@ -108,3 +108,29 @@ def test_every_figure_in_png_and_pdf(pipeline):
         assert p.stat().st_size > 1000
         head = p.read_bytes()[:4]
         assert head == (b"\x89PNG" if p.suffix == ".png" else b"%PDF")
+
+
+def test_runs_path_fills_the_section_once_and_hands_it_down_frozen(tiny, tmp_path, monkeypatch):
+    from granpipe.drum import layout, protocol
+
+    sec = {**tiny, "ensemble": {**tiny["ensemble"], "batch_size": 1, "n_replicas": 1}}
+    params = rule_params(sec)["sim"][point_names(sec)[0]]
+    init = tmp_path / "init_0.nc"
+    init_stage(params, 0, init)
+
+    fills, seen = [], []
+    read = layout._schema
+    monkeypatch.setattr(layout, "_schema", lambda *a: fills.append(a) or read(*a))
+    run_batch = protocol.run_batch
+
+    def spy(section, *args, **kwargs):
+        seen.append(section)
+        with pytest.raises(TypeError):
+            section["protocol"]["chunk_s"] = 1.0
+        return run_batch(section, *args, **kwargs)
+
+    monkeypatch.setattr(protocol, "run_batch", spy)
+    runs_stage(params, 0, init, tmp_path / "batch_0000.nc")
+    assert len(fills) == 1  # the stage's load of --params, nothing below it
+    assert len(seen) == 1 and isinstance(seen[0], layout.FrozenSection)
+    assert read_dataset(tmp_path / "batch_0000.nc").sizes["replica"] == 1

@@ -1,6 +1,8 @@
 """The drum's config section and where the study's files live (``results/<scale>/drum/``).
 
-The ``drum:`` section (:func:`filled`): schema defaults, cross-key checks
+The ``drum:`` section is filled once, when a stage loads its ``--params``
+(:func:`load`: schema defaults and checks, then a read-only :class:`FrozenSection` that
+is handed down and never filled again); :func:`filled` gives a mutable copy. Cross-key checks
 (:func:`check`), parameter points (:func:`points`) and the seeding subset
 (:func:`seed_physics`). Config keys and units: ``config/README.md`` (drum section) and
 ``workflow/schemas/drum.schema.yaml``. Physics is in reduced units (d_s, m_s,
@@ -23,6 +25,7 @@ import functools
 import itertools
 from collections.abc import Mapping
 from pathlib import Path
+from types import MappingProxyType
 
 import yaml
 
@@ -55,6 +58,9 @@ __all__ = [
     "PHYSICS_KEYS",
     "POINT_KEYS",
     "filled",
+    "load",
+    "FrozenSection",
+    "thaw",
     "points",
     "reference_point",
     "point_label",
@@ -92,11 +98,11 @@ def point_of(wildcards) -> str:
 
 def point_name(point: Mapping) -> str:
     """Folder name of a parameter point, e.g. ``N=736,period=900s,startup=paper``."""
-    sec = filled(point)
+    sec = load(point)
     ph = sec["physics"]
     n = int(ph["n_small"]) + int(ph["n_large"])
     period = ph["period_s"]
-    if isinstance(period, list):
+    if isinstance(period, list | tuple):
         raise ValueError("point_name needs one point's section (points)")
     return f"N={n},period={float(period):.4g}s,startup={sec['protocol']['startup']}"
 
@@ -146,7 +152,7 @@ def rule_params(section: Mapping) -> dict[str, dict]:
 
 
 def n_batches(section: Mapping) -> int:
-    ens = filled(section)["ensemble"]
+    ens = load(section)["ensemble"]
     return -(-int(ens["n_replicas"]) // int(ens["batch_size"]))
 
 
@@ -242,12 +248,79 @@ def _schema(path: str, mtime: int):
     return schema, jsonschema.Draft202012Validator(schema)
 
 
+def _freeze(obj):
+    """Read-only copy: mappings as ``types.MappingProxyType``, lists as tuples."""
+    if isinstance(obj, Mapping):
+        return MappingProxyType({k: _freeze(v) for k, v in obj.items()})
+    if isinstance(obj, list | tuple):
+        return tuple(_freeze(v) for v in obj)
+    return obj
+
+
+def thaw(obj):
+    """A plain, mutable deep copy (dicts and lists) of a (frozen) section or sub-section,
+    e.g. to hash or serialise it."""
+    if isinstance(obj, Mapping):
+        return {k: thaw(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [thaw(v) for v in obj]
+    return obj
+
+
+class FrozenSection(Mapping):
+    """A filled and checked ``drum`` section, read-only all the way down (:func:`load`).
+
+    Sub-sections are ``types.MappingProxyType`` and lists are tuples, so assignment at
+    any level raises ``TypeError``. :func:`load` and :func:`filled` take it as already
+    filled: handed down from the stage that loaded it, it is never filled again.
+    """
+
+    __slots__ = ("_data",)
+
+    def __init__(self, section: Mapping):
+        object.__setattr__(self, "_data", _freeze(section))
+
+    def __getitem__(self, key):
+        return self._data[key]
+
+    def __iter__(self):
+        return iter(self._data)
+
+    def __len__(self) -> int:
+        return len(self._data)
+
+    def __repr__(self) -> str:
+        return f"FrozenSection({thaw(self)!r})"
+
+    def __setattr__(self, name, value):
+        raise AttributeError("a FrozenSection is read-only")
+
+    def __copy__(self):
+        return self
+
+    def __deepcopy__(self, memo):
+        return self
+
+    def __reduce__(self):
+        return (FrozenSection, (thaw(self),))
+
+
+def load(section: Mapping | None) -> FrozenSection:
+    """The ``drum`` section filled once and frozen: what a stage makes of its ``--params``
+    and hands down (:func:`filled`, then :class:`FrozenSection`). A section already
+    loaded is returned as it is, without reading the schema again."""
+    if isinstance(section, FrozenSection):
+        return section
+    return FrozenSection(filled(section))
+
+
 def filled(section: Mapping | None) -> dict:
     """A deep copy of a ``drum`` section with every schema default filled in, checked.
 
     The workflow's top-level validation does not fill defaults through the
-    ``$ref`` to ``drum.schema.yaml``, so library code always goes through this (the
-    schema is read once per process and file version).
+    ``$ref`` to ``drum.schema.yaml``, so library code always goes through this or
+    :func:`load` (the schema is read once per process and file version). A
+    :class:`FrozenSection` is already filled: it comes back as a mutable copy.
 
     Raises
     ------
@@ -255,6 +328,8 @@ def filled(section: Mapping | None) -> dict:
         naming the key, if the section violates the schema or a fit window is not
         ordered.
     """
+    if isinstance(section, FrozenSection):
+        return thaw(section)
     path = schema_dir() / "drum.schema.yaml"
     schema, validator = _schema(str(path), path.stat().st_mtime_ns)
     sec = _fill_defaults(copy.deepcopy(dict(section or {})), schema, schema)
@@ -398,10 +473,10 @@ def seed_physics(section: Mapping) -> dict:
     :func:`granpipe.seeds.replica_rng` hashes it; sample sizes, fits and figures are
     not part of it.
     """
-    sec = filled(section)
+    sec = load(section)
     omega(sec["physics"])  # one point only
     keys = [k for k in PHYSICS_KEYS if k != "settle" or sec["protocol"]["startup"] == "settled"]
-    out = {k: copy.deepcopy(sec[k]) for k in keys}
+    out = {k: thaw(sec[k]) for k in keys}
     for a, b in _NOT_SEEDED:
         out[a].pop(b, None)
     return out

@@ -72,7 +72,7 @@ import xarray as xr
 from ..engine import DrumLaw, Simulation, WallDisks
 from ..errors import ConfigError, SimulationError
 from ..seeds import batch_replicas, replica_rng, replica_seed
-from .layout import filled, point_name, seed_physics
+from .layout import filled, load, point_name, seed_physics, thaw
 from .measures import ReplicaRecord, Snapshot, batch_dataset
 from .model import DrumGeometry, diameters, geometry, masses, omega, wall_positions
 from .preparation import random_placement
@@ -126,7 +126,7 @@ class DrumModel:
 
     @classmethod
     def from_section(cls, section: Mapping) -> DrumModel:
-        ph = dict(filled(section)["physics"])
+        ph = thaw(load(section)["physics"])
         geom = geometry(ph)
         d = diameters(ph)
         return cls(ph, geom, d, masses(ph), len(d), wall_positions(geom))
@@ -354,7 +354,7 @@ def settle(
 
 def prepare(model: DrumModel, section: Mapping, st: Steps, rng, *, on_chunk=None) -> Start:
     """Placement and the section's start-up (stage ``init``) from the placement stream."""
-    sec = filled(section)
+    sec = load(section)
     pos = _placement(model, sec["protocol"], rng)
     if sec["protocol"]["startup"] == "settled":
         return settle(model, st, sec["settle"], pos, on_chunk=on_chunk)
@@ -596,7 +596,7 @@ def _init_dataset(model: DrumModel, replicas, seeds, starts: list[Start]) -> xr.
 
 def init_batch(section: Mapping, batch: int, *, threads: int = 1, log: Log = _quiet):
     """Placement and start-up of every replica of ``batch`` (the init file's Dataset)."""
-    sec = filled(section)
+    sec = load(section)
     st = steps(sec)
     physics = seed_physics(sec)
     model = DrumModel.from_section(sec)
@@ -656,7 +656,7 @@ def _cost_line(rec, model) -> str:
 def run_batch(section: Mapping, batch: int, init: xr.Dataset, *, threads: int = 1,
               log: Log = _quiet) -> xr.Dataset:  # fmt: skip
     """The protocol for every replica of ``batch`` from its start (the run file)."""
-    sec = filled(section)
+    sec = load(section)
     st = steps(sec)
     physics = seed_physics(sec)
     model = DrumModel.from_section(sec)
@@ -706,7 +706,7 @@ def run_replica(section: Mapping, replica: int, *, log: Log = _quiet,
 
     The same numbers as replica ``replica`` of the workflow with this (point's) section.
     """
-    sec = filled(section)
+    sec = load(section)
     st = steps(sec)
     model = DrumModel.from_section(sec)
     place_rng, tangent_rng, seed = replica_streams(sec, replica)
@@ -810,7 +810,7 @@ class Steps:
 
 def steps(section: Mapping) -> Steps:
     """Convert the protocol times of a section (seconds, degrees) into steps."""
-    sec = filled(section)
+    sec = load(section)
     ph, pr, st = sec["physics"], sec["protocol"], sec["settle"]
     dt = float(ph["dt"])
     dt_s = dt * float(ph["t0_s"])

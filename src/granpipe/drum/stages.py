@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io import check_run_files, read_dataset, write_dataset
-from .layout import filled
+from .layout import load
 
 __all__ = [
     "init_stage",
@@ -47,7 +47,7 @@ def init_stage(params: Mapping, batch: int, out: str | os.PathLike, threads: int
     """Place every replica of ``batch`` and run its start-up; write the init file."""
     from .protocol import init_batch
 
-    sec = filled(params)
+    sec = load(params)  # filled once, handed down frozen
     ds = init_batch(sec, int(batch), threads=threads, log=_log)
     seeds = [int(s) for s in ds["seed"].values]
     path = write_dataset(
@@ -64,7 +64,7 @@ def runs_stage(
     """Run the protocol for every replica of ``batch`` from its init file."""
     from .protocol import run_batch
 
-    sec = filled(params)
+    sec = load(params)  # filled once, handed down frozen
     (info,) = check_run_files([init], study=STUDY, stage="init")
     init_ds = read_dataset(init)
     if init_ds.attrs.get("point") != _point(sec):
@@ -85,7 +85,7 @@ def ensemble_stage(params: Mapping, runs: Sequence[str | os.PathLike], out) -> P
     """Stream the run files of one point into ensemble means, standard errors and counts."""
     from .fits import reduce_runs
 
-    sec = filled(params)
+    sec = load(params)
     t0 = time.perf_counter()
     info = check_run_files(runs, study=STUDY)
     ds = reduce_runs(runs, exclude_flagged=sec["ensemble"]["exclude_flagged"])
@@ -115,7 +115,7 @@ def fits_stage(
     from .fits import PAPER_VALUES, drum_fits, load_units
 
     label = str(params.get("label", ""))
-    sec = filled({k: v for k, v in params.items() if k != "label"})
+    sec = load({k: v for k, v in params.items() if k != "label"})
     fcfg = sec["fits"]
     info = check_run_files(runs, study=STUDY)
     ens = read_dataset(ensemble)
@@ -187,7 +187,7 @@ def figures_stage(
     from ..figures import save_figure
     from .layout import COMPARISON_FIGURES, FIGURES
 
-    sec = filled({"figures": params["figures"]})
+    sec = load({"figures": params["figures"]})
     dpi = int(sec["figures"]["dpi"])
     points = list(params["points"])
     if len(points) != len(ensembles) or len(points) != len(fits):
