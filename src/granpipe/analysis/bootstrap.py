@@ -108,18 +108,14 @@ class FitResult:
         )
 
     def to_row(self, study: str, paper_value: float | None = None) -> dict:
-        """A ``summary.csv`` row (see :mod:`granpipe.analysis.summary`)."""
-        return {
-            "study": study,
-            "quantity": self.quantity,
-            "value": self.value,
-            "unit": self.unit,
-            "fit_error": self.fit_error,
-            "ci_low": self.ci_low,
-            "ci_high": self.ci_high,
-            "n": self.n,
-            "paper_value": paper_value,
-        }
+        """A ``summary.csv`` row (:func:`granpipe.analysis.summary.summary_row`)."""
+        from .summary import summary_row
+
+        return summary_row(
+            study, self.quantity, self.value, self.unit,
+            fit_error=self.fit_error, ci_low=self.ci_low, ci_high=self.ci_high, n=self.n,
+            paper_value=paper_value,
+        )  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -135,6 +135,8 @@ class SegmentedFit:
         value exp(ψ), fit error exp(ψ)·SE(ψ) (delta method), CI exp of the CI.
         Slopes are dimensionless log–log slopes. ``n`` is the number of points.
         """
+        from .summary import summary_row
+
         rows = []
         papers = list(paper_breakpoints or []) + [None] * self.n_breakpoints
         for j in range(self.n_breakpoints):
@@ -142,31 +144,30 @@ class SegmentedFit:
             if log_x:
                 v, se, ci = math.exp(v), math.exp(v) * se, np.exp(ci)
             rows.append(
-                dict(
-                    study=study,
-                    quantity=f"{prefix}_breakpoint_{j + 1}",
-                    value=v,
-                    unit=unit,
+                summary_row(
+                    study,
+                    f"{prefix}_breakpoint_{j + 1}",
+                    v,
+                    unit,
                     fit_error=se,
                     ci_low=ci[0],
                     ci_high=ci[1],
                     n=self.n,
                     paper_value=papers[j],
-                )
+                )  # fmt: skip
             )
         for j in range(self.n_breakpoints + 1):
             rows.append(
-                dict(
-                    study=study,
-                    quantity=f"{prefix}_slope_{j + 1}",
-                    value=self.slopes[j],
-                    unit="1",
+                summary_row(
+                    study,
+                    f"{prefix}_slope_{j + 1}",
+                    self.slopes[j],
+                    "1",
                     fit_error=self.slope_se[j],
                     ci_low=self.slope_ci[j, 0],
                     ci_high=self.slope_ci[j, 1],
                     n=self.n,
-                    paper_value=None,
-                )
+                )  # fmt: skip
             )
         return rows
 
@@ -587,17 +588,13 @@ class ArrheniusFit:
         self, study: str, quantity: str, paper_value: float | None = None, unit: str = "1"
     ) -> dict:
         """A ``summary.csv`` row for E_b (n = points used in the fit)."""
-        return dict(
-            study=study,
-            quantity=quantity,
-            value=self.E_b,
-            unit=unit,
-            fit_error=self.E_b_se,
-            ci_low=self.E_b_ci[0],
-            ci_high=self.E_b_ci[1],
-            n=self.n_points,
-            paper_value=paper_value,
-        )
+        from .summary import summary_row
+
+        return summary_row(
+            study, quantity, self.E_b, unit,
+            fit_error=self.E_b_se, ci_low=self.E_b_ci[0], ci_high=self.E_b_ci[1],
+            n=self.n_points, paper_value=paper_value,
+        )  # fmt: skip
 
     def predict(self, K_m) -> np.ndarray:
         """Fitted p_s at K_m."""

@@ -8,6 +8,11 @@ Empty cells where a column does not apply (no CI, no paper value). ``n`` is an
 integer (replicas, periods or grid points behind the value, as the study
 documents). Numbers are written with 10 significant digits.
 
+Every row is built by :func:`summary_row`: the studies' fits call it directly or through
+the ``to_row`` / ``summary_row(s)`` methods of the fitted results (``FitResult``,
+``SegmentedFit``, ``ArrheniusFit``, the box's ``Threshold``), and :func:`results_rows`
+reads rows back from a fits file the same way.
+
 Several fits rules may add rows to the same file; :func:`write_summary` with
 ``merge=True`` reads the existing file, replaces rows with the same
 (study, quantity) and writes the result atomically (temporary file + rename).

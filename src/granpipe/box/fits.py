@@ -48,6 +48,7 @@ import pandas as pd
 import xarray as xr
 
 from ..analysis import regression
+from ..analysis.summary import summary_row
 from ..io import read_dataset
 
 __all__ = [
@@ -112,17 +113,10 @@ class Threshold:
         lo, hi = self.ci_low, self.ci_high
         if math.isnan(lo) and math.isnan(hi):
             lo, hi = self.low, self.high
-        return dict(
-            study=study,
-            quantity=quantity,
-            value=self.value,
-            unit=unit,
-            fit_error=None,
-            ci_low=lo,
-            ci_high=hi,
-            n=n,
+        return summary_row(
+            study, quantity, self.value, unit, ci_low=lo, ci_high=hi, n=n,
             paper_value=paper_value,
-        )
+        )  # fmt: skip
 
 
 def _crossings(g, f):
@@ -434,14 +428,13 @@ def summary_rows(
     for r in table.itertuples(index=False):
         for name, col in ORDER_ROWS.items():
             rows.append(
-                {"study": "box", "quantity": f"{name}[{r.point}]", "value": getattr(r, col),
-                 "unit": "1", "n": r.replicas}
-            )  # fmt: skip
+                summary_row("box", f"{name}[{r.point}]", getattr(r, col), "1", n=r.replicas)
+            )
     for init, n_l, mu_w, g in _groups(table, used_only=False):
         if init == "crystal":
             rows.append(
-                {"study": "box", "quantity": _fmt_q("crystal_intact_points", init, n_l, mu_w),
-                 "value": int(used_mask(g).sum()), "unit": "1", "n": len(g)}
+                summary_row("box", _fmt_q("crystal_intact_points", init, n_l, mu_w),
+                            int(used_mask(g).sum()), "1", n=len(g))
             )  # fmt: skip
     for r in ths.itertuples(index=False):
         th = Threshold(
@@ -459,58 +452,42 @@ def summary_rows(
             paper = PAPER["K_m_break_random"] if (init == "random" and i == 0) else None
             lo, hi = tf["breakpoints_K_m_ci"][i]
             rows.append(
-                {
-                    "study": "box",
-                    "quantity": _fmt_q(name, init, n_l, mu_w),
-                    "value": tf["breakpoints_K_m"][i],
-                    "unit": "1",
-                    "fit_error": tf["breakpoints_K_m_se"][i],
-                    "ci_low": lo,
-                    "ci_high": hi,
-                    "n": tf["n_points"],
-                    "paper_value": _paper(paper, mu_w),
-                }
+                summary_row(
+                    "box",
+                    _fmt_q(name, init, n_l, mu_w),
+                    tf["breakpoints_K_m"][i],
+                    "1",
+                    fit_error=tf["breakpoints_K_m_se"][i],
+                    ci_low=lo,
+                    ci_high=hi,
+                    n=tf["n_points"],
+                    paper_value=_paper(paper, mu_w),
+                )  # fmt: skip
             )
         for i, region in enumerate(tf["regions"]):
             lo, hi = tf["slope_ci"][i]
             rows.append(
-                {
-                    "study": "box",
-                    "quantity": _fmt_q(f"T_g_slope_{region}", init, n_l, mu_w),
-                    "value": tf["slopes"][i],
-                    "unit": "1",
-                    "fit_error": tf["slope_se"][i],
-                    "ci_low": lo,
-                    "ci_high": hi,
-                    "n": tf["n_points"],
-                }
+                summary_row(
+                    "box",
+                    _fmt_q(f"T_g_slope_{region}", init, n_l, mu_w),
+                    tf["slopes"][i],
+                    "1",
+                    fit_error=tf["slope_se"][i],
+                    ci_low=lo,
+                    ci_high=hi,
+                    n=tf["n_points"],
+                )  # fmt: skip
             )
     for (init, n_l, mu_w), fits in sfits.items():
         for region, af in fits.items():
             paper = _paper(PAPER.get(f"E_b_{init}_{region}"), mu_w)
-            rows.append(
-                {
-                    "study": "box",
-                    "quantity": _fmt_q(f"E_b_{region}", init, n_l, mu_w),
-                    "value": af.E_b,
-                    "unit": "1",
-                    "fit_error": af.E_b_se,
-                    "ci_low": af.E_b_ci[0],
-                    "ci_high": af.E_b_ci[1],
-                    "n": af.n_points,
-                    "paper_value": paper,
-                }
-            )
+            rows.append(af.summary_row("box", _fmt_q(f"E_b_{region}", init, n_l, mu_w), paper))
     for init, n_l, mu_w, g in _groups(table, used_only=False):
+        cost = float(1e9 * g["wall_seconds"].sum() / max((g["steps"] * g["N"]).sum(), 1))
         rows.append(
-            {
-                "study": "box",
-                "quantity": _fmt_q("cost_ns_per_particle_step", init, n_l, mu_w),
-                "value": float(1e9 * g["wall_seconds"].sum() / max((g["steps"] * g["N"]).sum(), 1)),
-                "unit": "ns",
-                "n": len(g),
-            }
-        )
+            summary_row("box", _fmt_q("cost_ns_per_particle_step", init, n_l, mu_w), cost, "ns",
+                        n=len(g))
+        )  # fmt: skip
     return rows
 
 
