@@ -1,4 +1,5 @@
-"""The box fits on synthetic point tables with known thresholds, breakpoints and barriers.
+"""The box fits on synthetic point tables with known thresholds, breakpoints and barriers,
+and the threshold interpolation on a Γ grid.
 
 The analysis helpers check the generic regressions; here the glue: grouping by
 (init, N_l, mu_w), crystal points whose crystal broke left out, criteria and scales,

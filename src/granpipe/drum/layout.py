@@ -1,13 +1,12 @@
 """The drum's config section and where the study's files live (``results/<scale>/drum/``).
 
-The ``drum:`` section is filled once, when a stage loads its ``--params``
-(:func:`load`: schema defaults and checks, then a read-only :class:`FrozenSection` that
-is handed down and never filled again); :func:`filled` gives a mutable copy. Cross-key checks
-(:func:`check`), parameter points (:func:`points`) and the seeding subset
-(:func:`seed_physics`). Config keys and units: ``config/README.md`` (drum section) and
-``workflow/schemas/drum.schema.yaml``. Physics is in reduced units (d_s, m_s,
-t0 = sqrt(d_s/g)); protocol and analysis times are in seconds, as the paper quotes them
-(:func:`granpipe.drum.protocol.steps` converts them to whole numbers of steps of Δt).
+The ``drum:`` section: schema defaults and checks (:func:`filled`, :func:`check`),
+parameter points (:func:`points`) and the seeding subset (:func:`seed_physics`). A stage
+fills its ``--params`` once (:func:`load`) and hands the result down read-only
+(:class:`FrozenSection`), never filled again. Config keys and units: ``config/README.md``
+(drum section) and ``workflow/schemas/drum.schema.yaml``. Physics is in reduced units
+(d_s, m_s, t0 = sqrt(d_s/g)); protocol and analysis times are in seconds, as the paper
+quotes them (:func:`granpipe.drum.protocol.steps` converts them to whole steps of Δt).
 
 One folder per parameter point (:func:`points`), named after
 its size, drum period and start-up, e.g. ``N=736,period=900s,startup=paper``. Replicas
