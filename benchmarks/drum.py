@@ -23,10 +23,10 @@ import numpy as np
 import yaml
 
 from granpipe.drum.layout import filled, point_sections
+from granpipe.drum.preparation import prepare
 from granpipe.drum.protocol import (
     DrumModel,
     initial_tangent,
-    prepare,
     replica_streams,
     run_replica,
     steps,

@@ -139,28 +139,6 @@ def test_initial_tangent_sets_about_ten_percent_of_components():
     assert (dr[:, 0] != 0).any() and (dv[:, 1] != 0).any()
 
 
-def test_a_disk_released_at_the_top_falls_freely_with_no_cap(tiny):
-    """Paper start-up: a disk released at rest near the top of the turning drum has, after
-    0.15 s and before it touches anything, the free-fall speed sqrt(2 g h) of its drop h
-    (velocity Verlet is exact under constant gravity) - far above the settled start-up's
-    speed cap."""
-    from granpipe.drum.protocol import fall
-
-    sec = tiny_section({}, pre_rotation_deg=0.06, tangent_alignment_s=0.0)  # 0.15 s
-    sec["physics"].update(n_small=1, n_large=1)  # the second disk rests out of the way
-    st = steps(sec)
-    model = DrumModel.from_section(sec)
-    top = model.geom.inner_radius - 0.6
-    start = fall(model, st, np.array([[0.0, top], [5.0, -5.0]]))
-    g = float(sec["physics"]["g"])
-    drop = top - start.positions[0, 1]
-    v = start.velocities[0]
-    assert drop > 5.0 and abs(v[0]) < 1e-12
-    assert np.hypot(*v) == pytest.approx(np.sqrt(2.0 * g * drop), rel=1e-9)
-    assert np.hypot(*v) > 2.0 * sec["settle"]["max_speed"]
-    assert start.n_steps == st.pre_rotation and start.settled
-
-
 def test_the_drum_has_turned_exactly_one_degree_at_t0(tmp_path):
     """Paper start-up on the tiny drum with the paper's 1 degree: placement, fall (stage
     init), tangent alignment (stage runs), then t = 0 - the wall disks of the t = 0

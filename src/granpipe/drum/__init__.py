@@ -4,7 +4,8 @@ In protocol order:
 
 * :mod:`~granpipe.drum.model` — the drum of Table 1 (150 wall disks on a 150-gon),
   disk sizes and masses, reduced units, the drum's Ω, the tiny drum for tests.
-* :mod:`~granpipe.drum.preparation` — random non-overlapping placement.
+* :mod:`~granpipe.drum.preparation` — random non-overlapping placement; the start-up
+  (fall in the turning drum, or settling in a still one).
 * :mod:`~granpipe.drum.protocol` — one replica: placement, start-up, rotate 1°, onset
   window, continuous avalanche, decay window with the drum stopped at 5 s; batches;
   protocol times in steps.

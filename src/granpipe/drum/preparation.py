@@ -1,17 +1,35 @@
-"""Random non-overlapping placement of the mobile disks inside the drum (Sec. II.2).
+"""Initial states of the drum study (stage ``init``; Sec. II.2, docs/drum.md "Start-up").
+
+**Placement** (:func:`random_placement`): random non-overlapping placement of the mobile
+disks inside the drum.
 
 "We place the N non-wall disks randomly inside the drum and allow them to fall
 to the bottom": random sequential addition, uniform over the free disk of the
 drum, rejecting any trial that overlaps a disk already placed or the wall. At
 the paper's filling (~24 % of the free area) a trial is accepted after a few
 attempts, so placement costs milliseconds.
+
+**Start-up** (:func:`prepare`): after the placement, the fall in the turning drum
+(``paper`` start-up, :func:`fall`) or settling to rest in a still drum (``settled``,
+:func:`settle`), as :mod:`granpipe.drum.protocol` describes step by step; the
+:class:`Start` it returns is what the init file holds.
 """
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-__all__ = ["random_placement", "min_gap"]
+from .layout import load
+
+if TYPE_CHECKING:
+    from .protocol import DrumModel, Steps
+
+__all__ = ["random_placement", "min_gap", "Start", "fall", "settle", "prepare"]
 
 
 def random_placement(
@@ -81,3 +99,131 @@ def min_gap(positions: np.ndarray, diameters: np.ndarray) -> float:
     gap = dist - (d[:, None] + d[None, :]) / 2.0
     np.fill_diagonal(gap, np.inf)
     return float(gap.min())
+
+
+# ------------- start-ups: placement, then fall (paper) or settling (settled)
+@dataclass
+class Start:
+    """Where the stage ``runs`` starts a replica (the content of the init file).
+
+    Attributes
+    ----------
+    positions, velocities : (N, 2) float64 [d_s], [d_s/t0] of the mobile disks
+    wall_angle : float [rad]
+        Clockwise angle the drum has turned since the placement (0 for the settled
+        start-up, whose drum starts turning here).
+    settled : bool
+        The settling criterion was met (always true for the paper start-up, which has
+        none).
+    settle_time : float [s]
+        Duration of the fall (and settling) before this state.
+    n_steps : int; wall_time : float [s]
+        Cost of preparing it.
+    """
+
+    positions: np.ndarray
+    velocities: np.ndarray
+    wall_angle: float
+    settled: bool
+    settle_time: float
+    n_steps: int
+    wall_time: float
+
+
+def _placement(model: DrumModel, protocol: Mapping, rng) -> np.ndarray:
+    gap = float(protocol["placement_gap"])
+    return random_placement(model.diameters, model.geom.inner_radius, rng, gap=gap)
+
+
+def fall(
+    model: DrumModel,
+    st: Steps,
+    positions: np.ndarray,
+    *,
+    on_chunk: Callable[[int, float], None] | None = None,
+) -> Start:
+    """The paper start-up: disks at rest at ``positions`` fall while the drum turns.
+
+    Runs ``st.pre_rotation − st.alignment`` steps (forward dynamics only, no cap), so that
+    the stage ``runs`` reaches t = 0 exactly ``pre_rotation_deg`` after the placement.
+    """
+    t_wall = time.perf_counter()
+    sim = model.simulation(model.omega)
+    state = model.new_state(sim, positions, np.zeros_like(positions))
+    n_fall = st.pre_rotation - st.alignment
+    done = 0
+    while done < n_fall:
+        n = min(st.chunk, n_fall - done)
+        sim.run(state, n)
+        done += n
+        if on_chunk is not None:
+            on_chunk(done, (done - st.pre_rotation) * st.dt_s)
+    return Start(
+        positions=state.positions[: model.n_mobile].copy(),
+        velocities=state.velocities[: model.n_mobile].copy(),
+        wall_angle=model.omega * n_fall * st.dt,
+        settled=True,
+        settle_time=n_fall * st.dt_s,
+        n_steps=n_fall,
+        wall_time=time.perf_counter() - t_wall,
+    )
+
+
+def settle(
+    model: DrumModel,
+    st: Steps,
+    settle_cfg: Mapping,
+    positions: np.ndarray,
+    *,
+    on_chunk: Callable[[int, float], None] | None = None,
+) -> Start:
+    """The settled start-up: disks at ``positions`` fall and settle with the drum at rest."""
+    t_wall = time.perf_counter()
+    pos = np.asarray(positions, np.float64)
+    sim = model.simulation(0.0)
+    state = model.new_state(sim, pos, np.zeros_like(pos))
+    threshold = float(settle_cfg["speed_threshold"])
+    vmax = float(settle_cfg["max_speed"])
+    n_mob = model.n_mobile
+    history: list[np.ndarray] = []
+    done = 0
+    settled = False
+    while done < st.settle_max:
+        n = min(st.chunk, st.settle_max - done)
+        for _ in range(n // st.block):
+            rec = sim.run(state, st.block, stride=st.block)
+            history.append(model.rms_speed(rec.global_speed))
+            # Free fall from the top of the drum would hit the pile at ~10 sqrt(g d_s):
+            # this start-up caps the speeds instead.
+            vel = state.velocities[:n_mob]
+            speed = np.hypot(vel[:, 0], vel[:, 1])
+            fast = speed > vmax
+            if fast.any():
+                vel[fast] *= (vmax / speed[fast])[:, None]
+                sim.refresh(state)
+        done += n
+        if on_chunk is not None:
+            on_chunk(done, done * st.dt_s)
+        if done >= st.settle_min:
+            tail = np.concatenate(history[-st.settle_hold :])
+            if len(tail) >= st.settle_hold and np.all(tail < threshold):
+                settled = True
+                break
+    return Start(
+        positions=state.positions[: model.n_mobile].copy(),
+        velocities=state.velocities[: model.n_mobile].copy(),
+        wall_angle=0.0,
+        settled=settled,
+        settle_time=done * st.dt_s,
+        n_steps=done,
+        wall_time=time.perf_counter() - t_wall,
+    )
+
+
+def prepare(model: DrumModel, section: Mapping, st: Steps, rng, *, on_chunk=None) -> Start:
+    """Placement and the section's start-up (stage ``init``) from the placement stream."""
+    sec = load(section)
+    pos = _placement(model, sec["protocol"], rng)
+    if sec["protocol"]["startup"] == "settled":
+        return settle(model, st, sec["settle"], pos, on_chunk=on_chunk)
+    return fall(model, st, pos, on_chunk=on_chunk)

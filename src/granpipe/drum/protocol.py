@@ -75,16 +75,12 @@ from ..seeds import batch_replicas, replica_rng, replica_seed
 from .layout import filled, load, point_name, seed_physics, thaw
 from .measures import ReplicaRecord, Snapshot, batch_dataset
 from .model import DrumGeometry, diameters, geometry, masses, omega, wall_positions
-from .preparation import random_placement
+from .preparation import Start, prepare
 
 __all__ = [
     "DrumModel",
     "Progress",
-    "Start",
     "initial_tangent",
-    "settle",
-    "fall",
-    "prepare",
     "run_protocol",
     "init_batch",
     "run_batch",
@@ -234,131 +230,6 @@ class Progress:
 
 
 # --------------------------------------------------------------------------- start-ups
-@dataclass
-class Start:
-    """Where the stage ``runs`` starts a replica (the content of the init file).
-
-    Attributes
-    ----------
-    positions, velocities : (N, 2) float64 [d_s], [d_s/t0] of the mobile disks
-    wall_angle : float [rad]
-        Clockwise angle the drum has turned since the placement (0 for the settled
-        start-up, whose drum starts turning here).
-    settled : bool
-        The settling criterion was met (always true for the paper start-up, which has
-        none).
-    settle_time : float [s]
-        Duration of the fall (and settling) before this state.
-    n_steps : int; wall_time : float [s]
-        Cost of preparing it.
-    """
-
-    positions: np.ndarray
-    velocities: np.ndarray
-    wall_angle: float
-    settled: bool
-    settle_time: float
-    n_steps: int
-    wall_time: float
-
-
-def _placement(model: DrumModel, protocol: Mapping, rng) -> np.ndarray:
-    gap = float(protocol["placement_gap"])
-    return random_placement(model.diameters, model.geom.inner_radius, rng, gap=gap)
-
-
-def fall(
-    model: DrumModel,
-    st: Steps,
-    positions: np.ndarray,
-    *,
-    on_chunk: Callable[[int, float], None] | None = None,
-) -> Start:
-    """The paper start-up: disks at rest at ``positions`` fall while the drum turns.
-
-    Runs ``st.pre_rotation − st.alignment`` steps (forward dynamics only, no cap), so that
-    the stage ``runs`` reaches t = 0 exactly ``pre_rotation_deg`` after the placement.
-    """
-    t_wall = time.perf_counter()
-    sim = model.simulation(model.omega)
-    state = model.new_state(sim, positions, np.zeros_like(positions))
-    n_fall = st.pre_rotation - st.alignment
-    done = 0
-    while done < n_fall:
-        n = min(st.chunk, n_fall - done)
-        sim.run(state, n)
-        done += n
-        if on_chunk is not None:
-            on_chunk(done, (done - st.pre_rotation) * st.dt_s)
-    return Start(
-        positions=state.positions[: model.n_mobile].copy(),
-        velocities=state.velocities[: model.n_mobile].copy(),
-        wall_angle=model.omega * n_fall * st.dt,
-        settled=True,
-        settle_time=n_fall * st.dt_s,
-        n_steps=n_fall,
-        wall_time=time.perf_counter() - t_wall,
-    )
-
-
-def settle(
-    model: DrumModel,
-    st: Steps,
-    settle_cfg: Mapping,
-    positions: np.ndarray,
-    *,
-    on_chunk: Callable[[int, float], None] | None = None,
-) -> Start:
-    """The settled start-up: disks at ``positions`` fall and settle with the drum at rest."""
-    t_wall = time.perf_counter()
-    pos = np.asarray(positions, np.float64)
-    sim = model.simulation(0.0)
-    state = model.new_state(sim, pos, np.zeros_like(pos))
-    threshold = float(settle_cfg["speed_threshold"])
-    vmax = float(settle_cfg["max_speed"])
-    n_mob = model.n_mobile
-    history: list[np.ndarray] = []
-    done = 0
-    settled = False
-    while done < st.settle_max:
-        n = min(st.chunk, st.settle_max - done)
-        for _ in range(n // st.block):
-            rec = sim.run(state, st.block, stride=st.block)
-            history.append(model.rms_speed(rec.global_speed))
-            # Free fall from the top of the drum would hit the pile at ~10 sqrt(g d_s):
-            # this start-up caps the speeds instead.
-            vel = state.velocities[:n_mob]
-            speed = np.hypot(vel[:, 0], vel[:, 1])
-            fast = speed > vmax
-            if fast.any():
-                vel[fast] *= (vmax / speed[fast])[:, None]
-                sim.refresh(state)
-        done += n
-        if on_chunk is not None:
-            on_chunk(done, done * st.dt_s)
-        if done >= st.settle_min:
-            tail = np.concatenate(history[-st.settle_hold :])
-            if len(tail) >= st.settle_hold and np.all(tail < threshold):
-                settled = True
-                break
-    return Start(
-        positions=state.positions[: model.n_mobile].copy(),
-        velocities=state.velocities[: model.n_mobile].copy(),
-        wall_angle=0.0,
-        settled=settled,
-        settle_time=done * st.dt_s,
-        n_steps=done,
-        wall_time=time.perf_counter() - t_wall,
-    )
-
-
-def prepare(model: DrumModel, section: Mapping, st: Steps, rng, *, on_chunk=None) -> Start:
-    """Placement and the section's start-up (stage ``init``) from the placement stream."""
-    sec = load(section)
-    pos = _placement(model, sec["protocol"], rng)
-    if sec["protocol"]["startup"] == "settled":
-        return settle(model, st, sec["settle"], pos, on_chunk=on_chunk)
-    return fall(model, st, pos, on_chunk=on_chunk)
 
 
 # --------------------------------------------------------------------------- protocol
