@@ -3,7 +3,7 @@ regression, summary rows. Study-specific measures and fits live in the study's p
 
 Plain numpy / xarray in, labelled results out; nothing here knows the engine.
 Import from the submodules (this package imports nothing, so that loading one
-submodule does not pull in freud or pandas):
+submodule does not pull in the others, or pandas):
 
 - :mod:`.ensemble` — streaming (replica, time) batch reduction, batch means.
 - :mod:`.smoothing` — moving average λ̄ (drum Eq. 2), FFT low-pass.
