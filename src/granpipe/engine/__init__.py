@@ -118,11 +118,16 @@ Two disks on a collision course, then the drum of docs/drum.md in miniature::
                                            t_switch=state.time + 5 / 0.034975))
 """
 
+from granpipe.engine.contract import ContactLaw, registered_laws
 from granpipe.engine.laws import BoxLaw, DrumLaw
 from granpipe.engine.simulation import Ensemble, Record, Simulation, State
+from granpipe.engine.static_friction import StaticFrictionLaw
 from granpipe.engine.walls import FlatWalls, WallDisks
 
 __all__ = [
+    "ContactLaw",
+    "StaticFrictionLaw",
+    "registered_laws",
     "BoxLaw",
     "DrumLaw",
     "Ensemble",

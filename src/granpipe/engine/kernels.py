@@ -84,9 +84,11 @@ from granpipe.engine.walls import bottom_height, bottom_velocity, wall_omega
 # rows of vec (NV, N, 2)
 POS, VEL, FRC, POS_BUILD, WALL_REF, T_POS, T_VEL, T_FRC, IM2, MOB2, MG = range(11)
 NV = 11
-# rows of sca (NS, N)
+# rows of sca (NS, N); T_SPIN, T_TORQUE: the tangent vector's spin and torque (generic
+# passes of laws with spin, granpipe.engine.generic)
 RADIUS, INV_MASS, INV_INERTIA, SPIN, TORQUE, T_PREV, XI_LEFT, XI_RIGHT, XI_BOTTOM = range(9)
-NS = 9
+T_SPIN, T_TORQUE = 9, 10
+NS = 11
 # rows of ivec (NI, N)
 IS_WALL, CONTACTS, CELL_ITEMS, CELL_OF, PAIR_CONTACTS = range(5)
 NI = 5
@@ -1519,8 +1521,8 @@ def _box_forces(
 def _at(st, r):
     """Replica ``r`` of the storage tuple ``st``: the arrays of
     :data:`granpipe.engine.simulation._STORAGE` (``vec, sca, ivec, walls, pair_start,
-    pair_ij, pair_c, pair_xi, old_start, old_j, old_xi, buf, touch, cell_count,
-    cell_start, clock, counters``), each with a leading replica axis."""
+    pair_ij, pair_c, pair_xi, pair_dxi, old_start, old_j, old_xi, old_dxi, buf, touch,
+    cell_count, cell_start, clock, counters``), each with a leading replica axis."""
     return (
         st[0][r],
         st[1][r],
@@ -1539,6 +1541,8 @@ def _at(st, r):
         st[14][r],
         st[15][r],
         st[16][r],
+        st[17][r],
+        st[18][r],
     )
 
 
@@ -1599,8 +1603,8 @@ def _drum_replica(
     says how many) and of ``V = sqrt(sum |v|²)``. Returns the status code.
     """
     # fmt: off
-    (vec, sca, ivec, walls, pair_start, pair_ij, pair_c, _pair_xi, _old_start,
-     _old_j, _old_xi, buf, touch, cell_count, cell_start, clock, counters) = st
+    (vec, sca, ivec, walls, pair_start, pair_ij, pair_c, _pair_xi, _pair_dxi, _old_start,
+     _old_j, _old_xi, _old_dxi, buf, touch, cell_count, cell_start, clock, counters) = st
     # fmt: on
     half_skin = 0.5 * skin
     _set_gravity(vec, sca, g[0], g[1])
@@ -1682,8 +1686,8 @@ def _drum_replica(
 def _box_replica(n_steps, stride, dt, g, law, wd, fw, skin, st, out_speed, info):
     """Advance one replica ``n_steps`` under the box law; block means of ``V`` if ``stride``."""
     # fmt: off
-    (vec, sca, ivec, walls, pair_start, pair_ij, pair_c, pair_xi, old_start,
-     old_j, old_xi, buf, touch, cell_count, cell_start, clock, counters) = st
+    (vec, sca, ivec, walls, pair_start, pair_ij, pair_c, pair_xi, _pair_dxi, old_start,
+     old_j, old_xi, _old_dxi, buf, touch, cell_count, cell_start, clock, counters) = st
     # fmt: on
     half_skin = 0.5 * skin
     _set_gravity(vec, sca, g[0], g[1])
@@ -1766,8 +1770,8 @@ def _refresh_replica(law_id, tangent, rebuild, g, law, wd, fw, skin, st, dt, inf
     the caller keeps the forces and takes only their perturbation).
     """
     # fmt: off
-    (vec, sca, ivec, walls, pair_start, pair_ij, pair_c, pair_xi, old_start,
-     old_j, old_xi, buf, touch, cell_count, cell_start, clock, counters) = st
+    (vec, sca, ivec, walls, pair_start, pair_ij, pair_c, pair_xi, _pair_dxi, old_start,
+     old_j, old_xi, _old_dxi, buf, touch, cell_count, cell_start, clock, counters) = st
     # fmt: on
     t = _time(clock, counters, dt)
     n_walls = counters[N_WALLS]
@@ -1982,3 +1986,74 @@ def refresh_serial(law_id, tangent, rebuild, g, law, wd, fw, skin, st, dt, info)
             dt,
             info[r],
         )
+
+
+# --------------------------------------------------------------------------- the contract
+
+
+def _drum_run(fn):
+    """``fn`` (a drum driver) in the contract's argument order (law first;
+    :class:`granpipe.engine.contract.Kernels`)."""
+
+    def run(law, n_steps, stride, tangent, dt, g, wd, fw, skin, st, out_lam, out_nlam, speed, info):
+        fn(n_steps, stride, tangent, dt, g, law, wd, fw, skin, st, out_lam, out_nlam, speed, info)
+
+    return run
+
+
+def _box_run(fn):
+    """``fn`` (a box driver) in the contract's argument order (it records no lambda)."""
+
+    def run(law, n_steps, stride, tangent, dt, g, wd, fw, skin, st, out_lam, out_nlam, speed, info):
+        fn(n_steps, stride, dt, g, law, wd, fw, skin, st, speed, info)
+
+    return run
+
+
+def _refresh_as(law_id):
+    def refresh(law, tangent, rebuild, g, wd, fw, skin, st, dt, info):
+        refresh_serial(law_id, tangent, rebuild, g, law, wd, fw, skin, st, dt, info)
+
+    return refresh
+
+
+def _drum_set_tangent(law, g, wd, fw, skin, st, dt, info):
+    """The drum law's perturbation ``dF = J_r dr + J_v dv`` of a tangent vector just set,
+    at the current (full-step) velocities; the stored forces (from half-step velocities)
+    are kept, so that setting a tangent vector never changes the trajectory."""
+    vec = st[0]
+    saved = vec[:, FRC].copy()
+    refresh_serial(0, True, False, g, law, wd, fw, skin, st, dt, info)
+    vec[:, FRC] = saved
+
+
+def _no_tangent(*args):
+    raise NotImplementedError("this law has no tangent dynamics")
+
+
+def drum_kernels():
+    """The drum law's own passes (four-lane fused pair pass with the tangent vector)."""
+    from granpipe.engine.contract import Kernels
+
+    return Kernels(
+        _drum_run(drum_run_serial),
+        _drum_run(drum_run_parallel),
+        _refresh_as(0),
+        _drum_set_tangent,
+        True,
+        True,
+    )
+
+
+def box_kernels():
+    """The box law's own passes (shear history, flat walls; no tangent dynamics)."""
+    from granpipe.engine.contract import Kernels
+
+    return Kernels(
+        _box_run(box_run_serial),
+        _box_run(box_run_parallel),
+        _refresh_as(1),
+        _no_tangent,
+        True,
+        False,
+    )

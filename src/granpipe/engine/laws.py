@@ -36,10 +36,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from granpipe._jit import njit
+from granpipe.engine.contract import ContactLaw, law_leaf, pair_force, pair_force_jvp
 from granpipe.errors import ConfigError
 
 __all__ = [
@@ -263,22 +265,23 @@ def box_force_jvp(
     dvy,
     dw_i,
     dw_j,
+    dxi,
     kappa_n,
     kappa_t,
     gamma_n,
     gamma_t,
     mu,
 ):
-    """Directional derivative of :func:`box_force` at fixed prior history ``xi``.
+    """Directional derivative of :func:`box_force`.
 
     Perturbations: relative position ``dd``, relative velocity ``dv``, spins
-    ``dw_i, dw_j``. ``curv = 1/r`` for a pair (the lever arms then move with ``r``:
-    ``dl_i = dl_j = dr/2``) and 0 for a flat wall (``dl_i = dr/2`` with
-    ``dr = n . dd``; ``lever_j`` is unused there because a wall's spin is fixed).
+    ``dw_i, dw_j`` and prior history ``dxi``. ``curv = 1/r`` for a pair (the lever arms
+    then move with ``r``: ``dl_i = dl_j = dr/2``) and 0 for a flat wall (``dl_i = dr/2``
+    with ``dr = n . dd``; ``lever_j`` is unused there because a wall's spin is fixed).
 
     Returns
     -------
-    dfx, dfy, dtau_i, dtau_j : float
+    dfx, dfy, dtau_i, dtau_j, dxi_new : float
     """
     psi = curv * (ddy * nx - ddx * ny)
     dr = ddx * nx + ddy * ny
@@ -290,12 +293,145 @@ def box_force_jvp(
     dfn = -kappa_n * dr - gamma_n * m_eff * dvn
     sgn = 1.0 if f_t > 0.0 else -1.0
     sfn = 1.0 if f_n > 0.0 else -1.0
-    dft = sgn * mu * sfn * dfn if slip else -(kappa_t * dt + gamma_t * m_eff) * dvt
+    ddamp = gamma_t * m_eff * dvt
+    if slip:
+        dft = sgn * mu * sfn * dfn
+        inv_kt = 1.0 / kappa_t if kappa_t > 0.0 else 0.0
+        dxi_new = -(dft + ddamp) * inv_kt
+    else:
+        dxi_new = dxi + dvt * dt
+        dft = -kappa_t * dxi_new - ddamp
     a = dfn - f_t * psi
     b = f_n * psi + dft
     dtau_i = -dlev * f_t - lever_i * dft
     dtau_j = -dlev * f_t - lever_j * dft
-    return a * nx - b * ny, a * ny + b * nx, dtau_i, dtau_j
+    return a * nx - b * ny, a * ny + b * nx, dtau_i, dtau_j, dxi_new
+
+
+# --------------------------------------------------------------------------- the contract
+
+
+class DrumParams(NamedTuple):
+    """The drum law's parameters as the contract's leaves take them."""
+
+    k_n: float
+    gamma_n: float
+    gamma_t: float
+    mu: float
+
+
+class BoxParams(NamedTuple):
+    """The box law's parameters as the contract's leaves take them."""
+
+    kappa_n: float
+    kappa_t: float
+    gamma_n: float
+    gamma_t: float
+    mu: float
+
+
+@law_leaf(pair_force, DrumParams)
+def _drum_leaf(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
+    fx, fy, f_n, f_t, regime = drum_force(
+        nx, ny, delta, vx, vy, law.k_n, law.gamma_n, law.gamma_t, law.mu
+    )
+    return fx, fy, 0.0, 0.0, 0.0, f_n, f_t, regime
+
+
+@law_leaf(pair_force_jvp, DrumParams)
+def _drum_leaf_jvp(
+    law,
+    nx,
+    ny,
+    curv,
+    lever_i,
+    lever_j,
+    vx,
+    vy,
+    w_i,
+    w_j,
+    m_eff,
+    f_n,
+    f_t,
+    piece,
+    dt,
+    ddx,
+    ddy,
+    dvx,
+    dvy,
+    dw_i,
+    dw_j,
+    dxi,
+):
+    dfx, dfy = drum_force_jvp(
+        nx, ny, curv, vx, vy, f_n, f_t, piece, ddx, ddy, dvx, dvy,
+        law.k_n, law.gamma_n, law.gamma_t, law.mu,
+    )  # fmt: skip
+    return dfx, dfy, 0.0, 0.0, 0.0
+
+
+@law_leaf(pair_force, BoxParams)
+def _box_leaf(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
+    fx, fy, ti, tj, xi_new, f_n, f_t, slip = box_force(
+        nx, ny, -delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt,
+        law.kappa_n, law.kappa_t, law.gamma_n, law.gamma_t, law.mu,
+    )  # fmt: skip
+    return fx, fy, ti, tj, xi_new, f_n, f_t, 1 if slip else 0
+
+
+@law_leaf(pair_force_jvp, BoxParams)
+def _box_leaf_jvp(
+    law,
+    nx,
+    ny,
+    curv,
+    lever_i,
+    lever_j,
+    vx,
+    vy,
+    w_i,
+    w_j,
+    m_eff,
+    f_n,
+    f_t,
+    piece,
+    dt,
+    ddx,
+    ddy,
+    dvx,
+    dvy,
+    dw_i,
+    dw_j,
+    dxi,
+):
+    return box_force_jvp(
+        nx,
+        ny,
+        curv,
+        lever_i,
+        lever_j,
+        vx,
+        vy,
+        w_i,
+        w_j,
+        m_eff,
+        f_n,
+        f_t,
+        piece == 1,
+        dt,
+        ddx,
+        ddy,
+        dvx,
+        dvy,
+        dw_i,
+        dw_j,
+        dxi,
+        law.kappa_n,
+        law.kappa_t,
+        law.gamma_n,
+        law.gamma_t,
+        law.mu,
+    )
 
 
 def _positive(name, value, allow_zero=True):
@@ -306,7 +442,7 @@ def _positive(name, value, allow_zero=True):
 
 
 @dataclass(frozen=True)
-class DrumLaw:
+class DrumLaw(ContactLaw):
     """Linear spring-dashpot with viscous friction capped at Coulomb (docs/drum.md).
 
     Parameters
@@ -325,8 +461,10 @@ class DrumLaw:
     gamma_t: float
     mu: float
 
+    name = "drum"
     law_id = 0
     has_spin = False
+    has_history = False
 
     def __post_init__(self):
         _positive("k_n", self.k_n, allow_zero=False)
@@ -336,6 +474,16 @@ class DrumLaw:
     def params(self) -> np.ndarray:
         """Parameter vector passed to the kernels: ``[k_n, gamma_n, gamma_t, mu]``."""
         return np.array([self.k_n, self.gamma_n, self.gamma_t, self.mu], dtype=np.float64)
+
+    def leaf_params(self) -> DrumParams:
+        """The parameters as the contract's leaves take them."""
+        return DrumParams(*(float(x) for x in self.params()))
+
+    def kernels(self):
+        """The drum law's own vectorised passes (:func:`granpipe.engine.kernels.drum_kernels`)."""
+        from granpipe.engine.kernels import drum_kernels
+
+        return drum_kernels()
 
     def contact_time(self, m_eff: float) -> float:
         """Duration ``tau = pi / omega`` of a binary contact, ``omega² = k_n/m - gamma_n²/(4m²)``.
@@ -408,7 +556,7 @@ class DrumLaw:
 
 
 @dataclass(frozen=True)
-class BoxLaw:
+class BoxLaw(ContactLaw):
     """Linear spring-dashpot with tangential spring and Coulomb truncation (docs/box.md).
 
     Parameters
@@ -434,8 +582,10 @@ class BoxLaw:
     mu_wall: float | None = None
     mu_side: float | None = None
 
+    name = "box"
     law_id = 1
     has_spin = True
+    has_history = True
 
     def __post_init__(self):
         _positive("kappa_n", self.kappa_n, allow_zero=False)
@@ -460,6 +610,16 @@ class BoxLaw:
             [self.kappa_n, self.kappa_t, self.gamma_n, self.gamma_t, self.mu, self.mu_w, self.mu_s],
             dtype=np.float64,
         )
+
+    def leaf_params(self) -> BoxParams:
+        """The parameters as the contract's leaves take them (pair friction ``mu``)."""
+        return BoxParams(*(float(x) for x in self.params()[:5]))
+
+    def kernels(self):
+        """The box law's own passes (:func:`granpipe.engine.kernels.box_kernels`)."""
+        from granpipe.engine.kernels import box_kernels
+
+        return box_kernels()
 
     def contact_time(self, m_eff: float) -> float:
         """``t_c = pi (kappa_n/m_eff - gamma_n²/4)^(-1/2)`` (box paper Eq. A5)."""
@@ -547,8 +707,9 @@ class BoxLaw:
                 slip,
                 dt,
                 *e,
+                0.0,
                 *p,
-            )
+            )[:4]
         return jac
 
     def wall_force(self, h, v, spin, radius, mass, normal, xi=0.0, dt=0.0, mu=None):
@@ -593,7 +754,7 @@ class BoxLaw:
                 (0.0 * n, np.zeros(2), 1.0),
             ]
         ):
-            dfx, dfy, dti, _ = box_force_jvp(
+            dfx, dfy, dti, _, _ = box_force_jvp(
                 n[0],
                 n[1],
                 0.0,
@@ -613,6 +774,7 @@ class BoxLaw:
                 dv[0],
                 dv[1],
                 dw,
+                0.0,
                 0.0,
                 p[0],
                 p[1],

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from granpipe.engine import kernels as K
-from granpipe.engine.laws import BoxLaw, DrumLaw
+from granpipe.engine.contract import ContactLaw
 from granpipe.engine.neighbours import cell_capacity, pair_capacity
 from granpipe.engine.walls import NO_FLAT_WALLS, NO_WALL_DISKS, FlatWalls, WallDisks
 from granpipe.errors import ConfigError, SimulationError
@@ -33,8 +33,8 @@ _WALL_NAMES = {K.LEFT_WALL: "left wall", K.RIGHT_WALL: "right wall", K.BOTTOM_WA
 
 
 _STORAGE = (
-    "vec", "sca", "ivec", "walls", "pair_start", "pair_ij", "pair_c", "pair_xi",
-    "old_start", "old_j", "old_xi", "buf", "touch", "cell_count", "cell_start",
+    "vec", "sca", "ivec", "walls", "pair_start", "pair_ij", "pair_c", "pair_xi", "pair_dxi",
+    "old_start", "old_j", "old_xi", "old_dxi", "buf", "touch", "cell_count", "cell_start",
     "clock", "counters",
 )  # fmt: skip
 """Storage arrays every stepping kernel takes, as one tuple in this order (:func:`_storage`)."""
@@ -129,7 +129,7 @@ class Ensemble:
     def from_arrays(arrays):
         """Rebuild a :class:`State` or :class:`Ensemble` saved by :meth:`to_arrays`."""
         fmt = int(np.asarray(arrays.get("engine_format", -1)))
-        if fmt not in (2, 3, 4, _FORMAT):
+        if fmt not in (2, 3, 4, 5, _FORMAT):
             raise ConfigError(f"engine state format {fmt} is not {_FORMAT}; rerun to regenerate")
         storage = {}
         for key, val in arrays.items():
@@ -152,10 +152,19 @@ class Ensemble:
         if fmt == 2:
             # one-byte touch flags then (64-bit now: the law passes then need no packing)
             storage["touch"] = storage["touch"].astype(np.int64)
-        if fmt in (4, _FORMAT):
+        if fmt < 6:
+            # no tangent spin, torque and history then (the generic passes' rows)
+            sca = storage["sca"]
+            grown = np.zeros(sca.shape[:1] + (K.NS,) + sca.shape[2:])
+            grown[:, : sca.shape[1]] = sca
+            storage["sca"] = grown
+            storage["pair_dxi"] = np.zeros_like(storage["pair_xi"])
+        if fmt >= 4:
             vec = storage["vec"]
             storage.update(_scratch(vec.shape[:1], vec.shape[2], storage["pair_ij"].shape[-1]))
-        if fmt < _FORMAT:
+        elif "old_dxi" not in storage:
+            storage["old_dxi"] = np.zeros_like(storage["old_xi"])
+        if fmt < 5:
             # no overlap-bound slot then: the bound was half the smaller radius
             storage["clock"] = _pad(storage["clock"], K.NCLOCK)
             storage["clock"][..., K.OVERLAP_FRAC] = 0.5
@@ -265,6 +274,13 @@ class Ensemble:
         return self._v(dr), self._v(dv)
 
     @property
+    def tangent_spin(self):
+        """``dspin``: the spin part of the tangent vector, (N,) or (R, N) float64 (a copy, at
+        true scale; zero for laws without spin)."""
+        scale = np.ldexp(1.0, self._s["counters"][:, K.LOG2_SCALE])[:, None]
+        return self._v(self._s["sca"][:, K.T_SPIN] * scale)
+
+    @property
     def tangent_stored(self):
         """``(dr, dv)`` as stored (views), of norm of order 1 after renormalisation."""
         return self._v(self._s["vec"][:, K.T_POS]), self._v(self._s["vec"][:, K.T_VEL])
@@ -340,7 +356,17 @@ class State(Ensemble):
 # storage entries shared by all replicas (not stacked)
 _SHARED_KEYS = {"dt", "law_id", "has_spin", "has_tangent", "centre", "skin"}
 # storage entries whose last axis is the pair capacity
-_PAIR_KEYS = ("pair_ij", "pair_c", "pair_xi", "old_j", "old_xi", "buf", "touch")
+_PAIR_KEYS = (
+    "pair_ij",
+    "pair_c",
+    "pair_xi",
+    "pair_dxi",
+    "old_j",
+    "old_xi",
+    "old_dxi",
+    "buf",
+    "touch",
+)
 
 
 _ALIGN = 64
@@ -386,10 +412,10 @@ def _pad(arr, width):
     return out
 
 
-_FORMAT = 5
+_FORMAT = 6
 # storage that only carries values within one step or list build (pair buffers, the old
 # list while histories are carried over): not saved by ``to_arrays``
-_SCRATCH_KEYS = ("old_start", "old_j", "old_xi", "buf")
+_SCRATCH_KEYS = ("old_start", "old_j", "old_xi", "old_dxi", "buf")
 
 
 def _scratch(lead, n, cap):
@@ -398,6 +424,7 @@ def _scratch(lead, n, cap):
         "old_start": np.zeros(lead + (n + 1,), dtype=np.int64),
         "old_j": np.zeros(lead + (cap,), dtype=np.uint32),
         "old_xi": np.zeros(lead + (cap,)),
+        "old_dxi": np.zeros(lead + (cap,)),
         "buf": np.zeros(lead + (K.NB, cap)),
     }
 
@@ -434,8 +461,9 @@ class Simulation:
 
     Parameters
     ----------
-    law : DrumLaw or BoxLaw
-        Contact law for disk pairs and disk-wall contacts.
+    law : ContactLaw
+        Contact law for disk pairs and disk-wall contacts (``DrumLaw``, ``BoxLaw``,
+        ``StaticFrictionLaw`` or any law of the contract, :mod:`granpipe.engine.contract`).
     dt : float [time]
         Time step of velocity Verlet.
     gravity : (2,) float [length/time²]
@@ -455,9 +483,13 @@ class Simulation:
     parallel : bool
         Run ensembles of several replicas under ``prange`` (results are identical
         either way).
+    passes : str
+        ``"law"`` (default): the law's own passes (:meth:`ContactLaw.kernels`);
+        ``"generic"``: the generic scalar passes of :mod:`granpipe.engine.generic`, the
+        reference every law's own passes are tested against (disk walls only).
     """
 
-    law: DrumLaw | BoxLaw
+    law: ContactLaw
     dt: float
     gravity: tuple[float, float] = (0.0, -1.0)
     wall_disks: WallDisks | None = None
@@ -465,10 +497,17 @@ class Simulation:
     skin: float | None = None
     parallel: bool = True
     max_overlap: float = 0.5
+    passes: str = "law"
 
     def __post_init__(self):
-        if not isinstance(self.law, DrumLaw | BoxLaw):
-            raise ConfigError("law must be a DrumLaw or a BoxLaw")
+        if not isinstance(self.law, ContactLaw):
+            raise ConfigError("law must be a contact law (granpipe.engine.contract.ContactLaw)")
+        if self.passes not in ("law", "generic"):
+            raise ConfigError(f"passes must be 'law' or 'generic', got {self.passes!r}")
+        if self.flat_walls is not None and not self._kernels().flat_walls:
+            raise ConfigError(
+                f"the {self.passes} passes of the {self.law.name} law have no flat walls"
+            )
         if not (math.isfinite(self.dt) and self.dt > 0):
             raise ConfigError(f"dt must be > 0, got {self.dt!r}")
         if len(self.gravity) != 2:
@@ -487,7 +526,16 @@ class Simulation:
         g = np.asarray(self.gravity, dtype=np.float64)
         wd = NO_WALL_DISKS if self.wall_disks is None else self.wall_disks.params()
         fw = NO_FLAT_WALLS if self.flat_walls is None else self.flat_walls.params()
-        return g, self.law.params(), wd, fw
+        law = self.law.leaf_params() if self.passes == "generic" else self.law.params()
+        return g, law, wd, fw
+
+    def _kernels(self):
+        """The passes this simulation runs (:class:`granpipe.engine.contract.Kernels`)."""
+        if self.passes == "generic":
+            from granpipe.engine.generic import GENERIC_KERNELS
+
+            return GENERIC_KERNELS
+        return self.law.kernels()
 
     # -- states -------------------------------------------------------------------------
     def new_state(
@@ -561,7 +609,7 @@ class Simulation:
             raise ConfigError(f"velocities must have the shape of positions, got {vel.shape}")
         spin = per_disk(spins, "spins", default=0.0)
         if spins is not None and not self.law.has_spin:
-            raise ConfigError("spins need a law with rotation (BoxLaw)")
+            raise ConfigError(f"spins need a law with rotation; the {self.law.name} law has none")
         with np.errstate(divide="ignore"):
             inv_mass = np.where(wall, 0.0, 1.0 / np.where(wall, 1.0, mass))
             if inertia is None:
@@ -615,6 +663,7 @@ class Simulation:
             "pair_ij": np.zeros((r_count, 3, cap), dtype=np.uint32),
             "pair_c": np.zeros((r_count, K.NPC, cap)),
             "pair_xi": np.zeros((r_count, cap)),
+            "pair_dxi": np.zeros((r_count, cap)),
             **_scratch((r_count,), n, cap),
             "touch": np.zeros((r_count, cap), dtype=np.int64),
             "cell_count": np.zeros((r_count, ccap + 1), dtype=np.int64),
@@ -693,18 +742,8 @@ class Simulation:
     def _refresh_kernel(self, state, tangent, rebuild, skin):
         g, law, wd, fw = self._params()
         s = state._s
-        K.refresh_serial(
-            self.law.law_id,
-            tangent,
-            rebuild,
-            g,
-            law,
-            wd,
-            fw,
-            skin,
-            _storage(s),
-            self.dt,
-            s["info"],
+        self._kernels().refresh(
+            law, tangent, rebuild, g, wd, fw, skin, _storage(s), self.dt, s["info"]
         )
 
     def refresh(self, state) -> None:
@@ -718,37 +757,43 @@ class Simulation:
         self._refresh_kernel(state, bool(state._s["has_tangent"]), True, skin)
         self._raise(state)
 
-    def set_tangent(self, state, dr, dv) -> None:
-        """Set the tangent vector ``du = (dr, dv)`` (drum law only; wall rows are ignored).
+    def set_tangent(self, state, dr, dv, dspin=None) -> None:
+        """Set the tangent vector ``du = (dr, dv[, dspin])`` (wall rows are ignored).
 
         Parameters
         ----------
         dr, dv : (N, 2) or (R, N, 2) float64
-            Perturbations of positions and velocities. The matching force
-            perturbation ``dF = J_r dr + J_v dv`` is evaluated at the current state;
-            the forces themselves are left untouched, so setting a tangent vector
-            never changes the trajectory.
+            Perturbations of positions and velocities.
+        dspin : (N,) or (R, N) float64, optional
+            Perturbation of the spins (laws with spin; default 0). The perturbations of
+            the shear histories start at zero.
+
+        The matching force perturbation (``dF = J_r dr + J_v dv``, and torques) is
+        evaluated at the current state; the forces themselves are left untouched, so
+        setting a tangent vector never changes the trajectory.
         """
-        if self.law.law_id != 0:
-            raise ConfigError("tangent dynamics is implemented for the drum law only")
-        self._check(state)
+        if not self._kernels().tangent:
+            raise ConfigError(
+                f"the {self.passes} passes of the {self.law.name} law have no tangent dynamics"
+            )
+        if dspin is not None and not self.law.has_spin:
+            raise ConfigError(f"the {self.law.name} law has no spin to perturb")
+        skin = self._check(state)
         s = state._s
-        dr = np.asarray(dr, np.float64)
-        dv = np.asarray(dv, np.float64)
         shape = s["vec"][:, K.POS].shape
-        dr = dr.reshape(shape)
-        dv = dv.reshape(shape)
-        wall = s["ivec"][:, K.IS_WALL, :, None] != 0
-        s["vec"][:, K.T_POS] = np.where(wall, 0.0, dr)
-        s["vec"][:, K.T_VEL] = np.where(wall, 0.0, dv)
+        dr = np.asarray(dr, np.float64).reshape(shape)
+        dv = np.asarray(dv, np.float64).reshape(shape)
+        ds = np.zeros(shape[:2]) if dspin is None else np.asarray(dspin, np.float64)
+        ds = ds.reshape(shape[:2])
+        wall = s["ivec"][:, K.IS_WALL] != 0
+        s["vec"][:, K.T_POS] = np.where(wall[..., None], 0.0, dr)
+        s["vec"][:, K.T_VEL] = np.where(wall[..., None], 0.0, dv)
+        s["sca"][:, K.T_SPIN] = np.where(wall, 0.0, ds)
+        s["pair_dxi"][:] = 0.0
         s["counters"][:, K.LOG2_SCALE] = 0
         s["has_tangent"] = True
-        skin = s["skin"]
-        saved_f = s["vec"][:, K.FRC].copy()
-        # forces at the current (full-step) velocities give the perturbation; the stored
-        # forces (from half-step velocities) are kept, so the trajectory does not change
-        self._refresh_kernel(state, True, False, skin)
-        s["vec"][:, K.FRC] = saved_f
+        g, law, wd, fw = self._params()
+        self._kernels().set_tangent(law, g, wd, fw, skin, _storage(s), self.dt, s["info"])
         self._raise(state)
 
     def random_tangent(self, state, rng, fraction=0.1) -> None:
@@ -806,8 +851,10 @@ class Simulation:
             raise ConfigError("n_steps must be >= 0")
         if stride < 0 or (stride > 0 and n_steps % stride):
             raise ConfigError(f"n_steps ({n_steps}) must be a multiple of stride ({stride})")
-        if tangent and self.law.law_id != 0:
-            raise ConfigError("tangent dynamics is implemented for the drum law only")
+        if tangent and not self._kernels().tangent:
+            raise ConfigError(
+                f"the {self.passes} passes of the {self.law.name} law have no tangent dynamics"
+            )
         if tangent and not state.has_tangent:
             raise ConfigError("set a tangent vector first (Simulation.set_tangent)")
         skin = self._check(state)
@@ -816,44 +863,27 @@ class Simulation:
         blocks = n_steps // stride if stride else 0
         t_start = s["clock"][:, K.T_ORIGIN] + s["counters"][:, K.STEP] * self.dt
         speed = np.zeros((r_count, blocks))
+        lam = np.zeros((r_count, blocks))
+        nlam = np.zeros((r_count, blocks), dtype=np.int64)
         g, law, wd, fw = self._params()
-        par = self.parallel and r_count > 1
-        if self.law.law_id == 0:
-            lam = np.zeros((r_count, blocks))
-            nlam = np.zeros((r_count, blocks), dtype=np.int64)
-            fn = K.drum_run_parallel if par else K.drum_run_serial
-            fn(
-                n_steps,
-                stride,
-                bool(tangent),
-                self.dt,
-                g,
-                law,
-                wd,
-                fw,
-                skin,
-                _storage(s),
-                lam,
-                nlam,
-                speed,
-                s["info"],
-            )
-        else:
-            lam = nlam = None
-            fn = K.box_run_parallel if par else K.box_run_serial
-            fn(
-                n_steps,
-                stride,
-                self.dt,
-                g,
-                law,
-                wd,
-                fw,
-                skin,
-                _storage(s),
-                speed,
-                s["info"],
-            )
+        kern = self._kernels()
+        fn = kern.run_parallel if self.parallel and r_count > 1 else kern.run_serial
+        fn(
+            law,
+            n_steps,
+            stride,
+            bool(tangent),
+            self.dt,
+            g,
+            wd,
+            fw,
+            skin,
+            _storage(s),
+            lam,
+            nlam,
+            speed,
+            s["info"],
+        )
         self._raise(state)
         # block b holds steps b*stride+1 .. (b+1)*stride after the start
         centre = (np.arange(blocks) * stride + 0.5 * (stride + 1)) * self.dt

@@ -1,0 +1,295 @@
+"""The contact-law contract: what a law declares, and the leaves the generic passes call.
+
+A law is one file (e.g. :mod:`granpipe.engine.static_friction`) that declares
+
+* its **parameters** as a :class:`typing.NamedTuple` subclass (the *parameter type*): the
+  kernels receive an instance, and numba compiles the generic passes once per type;
+* its **capabilities**: spin (torques and angular velocities) and tangential history
+  (one elastic shear displacement per contact, carried over list rebuilds);
+* its **leaves**, implementations of the two generic functions below for its parameter
+  type (``numba.extending.overload``; see :func:`law_leaf`): the force of one contact,
+  and that force's directional derivative (Jacobian times a vector) with respect to the
+  relative position, the relative velocity, both spins and the history;
+* a Python-level object (a subclass of :class:`ContactLaw`) that validates the
+  parameters and hands the kernels to :class:`granpipe.engine.Simulation`
+  (:meth:`ContactLaw.kernels`).
+
+The generic scalar passes of :mod:`granpipe.engine.generic` then give the law forward
+runs and tangent dynamics; a law needs no pass of its own. A law may opt into a faster
+path of its own by overriding :meth:`ContactLaw.kernels` (the drum and box laws of the
+papers keep their vectorised passes, :mod:`granpipe.engine.kernels`). See
+``docs/architecture.md``, "Adding a contact law".
+
+Why overloads on a parameter type, not functions passed as arguments: numba cannot
+cache a kernel that takes a jitted function as an argument across processes (the
+cache key holds the function object), but it caches a kernel specialised on a named
+tuple type, which pickles by reference to its class. Every file of the engine is part
+of the cache stamp (:mod:`granpipe._jit`), so an edit to a law recompiles the passes
+that inline it.
+
+Conventions of one contact, as in :mod:`granpipe.engine.laws`: the normal ``n`` points
+from j to i, the tangent is ``t = e_z x n = (-n_y, n_x)``, the contact point lies at the
+middle of the overlap (lever arms ``l_i + l_j = r``), forces are on i (j feels the
+opposite) and torques are counter-clockwise positive.
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import ClassVar, NamedTuple
+
+import numpy as np
+
+__all__ = [
+    "ContactLaw",
+    "Kernels",
+    "pair_force",
+    "pair_force_jvp",
+    "law_leaf",
+    "registered_laws",
+]
+
+_REGISTRY: dict[str, type] = {}
+
+
+def pair_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
+    """Force of one contact (a generic leaf; each law implements it for its type).
+
+    Parameters
+    ----------
+    law : the law's parameter type (a NamedTuple)
+    nx, ny : float
+        Unit normal from j to i.
+    delta : float [length]
+        ``r - (a_i + a_j)`` (the negative overlap; the contact exists for ``delta <= 0``).
+    lever_i, lever_j : float [length]
+        Distances from the centres to the contact point (``(r + a_i - a_j)/2`` and
+        ``(r + a_j - a_i)/2``).
+    vx, vy : float [length/time]
+        Relative velocity ``v_i - v_j`` (half-step velocities in the step).
+    w_i, w_j : float [1/time]
+        Spins (0 for a law without spin).
+    m_eff : float [mass]
+        ``m_i m_j / (m_i + m_j)`` (``m_i`` against a wall disk).
+    xi : float [length]
+        Shear history along ``t`` before this evaluation (0 for a law without history).
+    dt : float [time]
+        Step by which the history advances (0: evaluate without advancing).
+
+    Returns
+    -------
+    fx, fy : float
+        Force on i.
+    tau_i, tau_j : float
+        Torques on i and j.
+    xi_new : float
+        History after the evaluation.
+    f_n, f_t : float
+        Normal and tangential force components (along ``n`` and ``t``).
+    piece : int
+        Which smooth piece of the law applied (the law's own codes); passed back to
+        :func:`pair_force_jvp`.
+    """
+    raise NotImplementedError("a generic leaf: implemented per law (numba overload)")
+
+
+def pair_force_jvp(
+    law,
+    nx,
+    ny,
+    curv,
+    lever_i,
+    lever_j,
+    vx,
+    vy,
+    w_i,
+    w_j,
+    m_eff,
+    f_n,
+    f_t,
+    piece,
+    dt,
+    ddx,
+    ddy,
+    dvx,
+    dvy,
+    dw_i,
+    dw_j,
+    dxi,
+):
+    """Directional derivative of :func:`pair_force` at the point it was evaluated.
+
+    The forward arguments are those of :func:`pair_force` (``curv = 1/r``) with its
+    outputs ``f_n, f_t, piece``; the perturbations are of the relative position ``dd``,
+    the relative velocity ``dv``, the spins and the prior history. Exact on each smooth
+    piece.
+
+    Returns
+    -------
+    dfx, dfy, dtau_i, dtau_j, dxi_new : float
+    """
+    raise NotImplementedError("a generic leaf: implemented per law (numba overload)")
+
+
+def law_leaf(generic, params_type):
+    """Decorator: the implementation of ``generic`` (:func:`pair_force` or
+    :func:`pair_force_jvp`) for the parameter type ``params_type``.
+
+    The decorated function has the generic's signature and is compiled inline into the
+    generic passes whenever they run with an instance of ``params_type``::
+
+        @law_leaf(pair_force, StaticFrictionParams)
+        def _force(law, nx, ny, delta, ...):
+            ...
+    """
+    from numba import types
+    from numba.extending import overload
+
+    def register(impl):
+        def typer(law, *args):
+            if isinstance(law, types.BaseNamedTuple) and law.instance_class is params_type:
+                return impl
+            return None
+
+        # numba checks that the typer and the implementation have one signature
+        typer.__signature__ = inspect.signature(impl)
+        typer.__name__ = f"{generic.__name__}_{params_type.__name__}"
+        overload(generic, jit_options={"cache": True, "fastmath": False})(typer)
+        return impl
+
+    return register
+
+
+class Kernels(NamedTuple):
+    """What :class:`granpipe.engine.Simulation` calls for a law.
+
+    ``run_serial`` / ``run_parallel(law, n_steps, stride, tangent, dt, g, wd, fw, skin,
+    st, out_lam, out_nlam, out_speed, info)`` advance replicas (arrays with a leading
+    replica axis; ``law`` is :meth:`ContactLaw.params`); ``refresh(law, tangent, rebuild,
+    g, wd, fw, skin, st, dt, info)`` re-evaluates the forces after an edit;
+    ``set_tangent(law, g, wd, fw, skin, st, dt, info)`` evaluates the perturbations of a
+    tangent vector just written into the state, leaving the forward state as it was.
+    ``flat_walls`` and ``tangent`` say whether the passes handle flat walls and tangent
+    dynamics.
+    """
+
+    run_serial: object
+    run_parallel: object
+    refresh: object
+    set_tangent: object
+    flat_walls: bool
+    tangent: bool
+
+
+class ContactLaw:
+    """Base of the Python-level law objects handed to :class:`granpipe.engine.Simulation`.
+
+    A subclass declares ``name``, ``law_id`` (a small integer stored in states, so a state
+    is never run under another law), the capabilities ``has_spin`` and ``has_history``,
+    and implements :meth:`params` (the parameter object of its kernels), :meth:`leaf_params`
+    (the parameter type of its leaves, if that differs) and, unless the generic passes
+    suffice, :meth:`kernels`. Subclasses register themselves.
+    """
+
+    name: ClassVar[str] = ""
+    law_id: ClassVar[int] = -1
+    has_spin: ClassVar[bool] = False
+    has_history: ClassVar[bool] = False
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if cls.name:
+            other = next((c for c in _REGISTRY.values() if c.law_id == cls.law_id), None)
+            if other is not None and other.name != cls.name:
+                raise TypeError(f"law_id {cls.law_id} of {cls.name} is taken by {other.name}")
+            _REGISTRY[cls.name] = cls
+
+    def params(self):
+        """The parameter object the kernels take (an array or the law's NamedTuple)."""
+        raise NotImplementedError
+
+    def leaf_params(self):
+        """The instance of the law's parameter type that its leaves take (the generic
+        passes run with it)."""
+        return self.params()
+
+    def pair(self, d, v, spin_i, spin_j, radius_i, radius_j, m_eff, xi=0.0, dt=0.0):
+        """One contact through the law's leaf (:func:`pair_force`), for tests and studies.
+
+        Parameters
+        ----------
+        d, v : (2,) float
+            ``r_i - r_j`` and ``v_i - v_j``.
+        spin_i, spin_j : float [1/time]
+        radius_i, radius_j : float [length]
+        m_eff : float [mass]
+        xi : float [length]
+            Shear history before the evaluation.
+        dt : float [time]
+            Step by which the history advances.
+
+        Returns
+        -------
+        (5,) float64 ``(F_x, F_y, tau_i, tau_j, xi_new)`` (zeros when apart), and the
+        piece (int; -1 when apart).
+        """
+        from granpipe.engine.generic import evaluate_pair
+
+        g = _pair_geometry(d, radius_i, radius_j)
+        if g is None:
+            return np.zeros(5), -1
+        nx, ny, r, delta, lev_i, lev_j = g
+        out = evaluate_pair(
+            self.leaf_params(), nx, ny, delta, lev_i, lev_j, float(v[0]), float(v[1]),
+            float(spin_i), float(spin_j), float(m_eff), float(xi), float(dt),
+        )  # fmt: skip
+        return np.array(out[:5]), int(out[7])
+
+    def pair_jacobian(self, d, v, spin_i, spin_j, radius_i, radius_j, m_eff, xi=0.0, dt=0.0):
+        """Jacobian (5, 7) of :meth:`pair`'s ``(F_x, F_y, tau_i, tau_j, xi_new)`` with respect
+        to ``(d_x, d_y, v_x, v_y, spin_i, spin_j, xi)``, from the law's Jacobian leaf
+        (:func:`pair_force_jvp`; exact on the piece the contact is on)."""
+        from granpipe.engine.generic import evaluate_pair, evaluate_pair_jvp
+
+        nx, ny, r, delta, lev_i, lev_j = _pair_geometry(d, radius_i, radius_j)
+        law = self.leaf_params()
+        fwd = (float(v[0]), float(v[1]), float(spin_i), float(spin_j), float(m_eff))
+        out = evaluate_pair(law, nx, ny, delta, lev_i, lev_j, *fwd, float(xi), float(dt))
+        jac = np.zeros((5, 7))
+        for k, e in enumerate(np.eye(7)):
+            jac[:, k] = evaluate_pair_jvp(
+                law, nx, ny, 1.0 / r, lev_i, lev_j, *fwd, out[5], out[6], out[7], float(dt), *e
+            )
+        return jac
+
+    def kernels(self):
+        """The law's :class:`Kernels`: the generic scalar passes unless the law has its own."""
+        from granpipe.engine.generic import GENERIC_KERNELS
+
+        return GENERIC_KERNELS
+
+
+def _pair_geometry(d, radius_i, radius_j):
+    """``(nx, ny, r, delta, lever_i, lever_j)`` of a pair, or None when apart."""
+    r = float(np.hypot(d[0], d[1]))
+    delta = r - (radius_i + radius_j)
+    if delta > 0:
+        return None
+    return (
+        d[0] / r,
+        d[1] / r,
+        r,
+        delta,
+        0.5 * (r + radius_i - radius_j),
+        0.5 * (r + radius_j - radius_i),
+    )
+
+
+def registered_laws() -> dict[str, type]:
+    """``{name: class}`` of every law defined so far (import :mod:`granpipe.engine` first)."""
+    return dict(_REGISTRY)
+
+
+def as_array(params) -> np.ndarray:
+    """A law's parameters as a float64 vector (for provenance and hashing)."""
+    return np.asarray(tuple(params), dtype=np.float64)

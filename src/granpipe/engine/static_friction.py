@@ -1,0 +1,192 @@
+"""Static-friction drum law: the drum's disks with spin and a Cundall–Strack spring.
+
+The drum paper's next step ("we will incorporate static friction", Sec. III): the
+drum's normal law (its Eq. 1, ``k_n``, ``gamma_n``, damping not scaled by mass), disks
+that turn (``I = m d²/8``), and a tangential spring with history truncated at Coulomb
+plus the drum's tangential dashpot (Cundall & Strack 1979, as LAMMPS' ``gran/hooke/
+history``)::
+
+    f_n  = -k_n delta - gamma_n v_n                 (delta = r - a_i - a_j <= 0)
+    u    = v_ij . t - l_i w_i - l_j w_j            (slip velocity at the contact point)
+    xi'  = xi + u dt,   f_t* = -k_t xi' - gamma_t u
+    |f_t*| <= mu max(f_n, 0):   f_t = f_t*          (stick)
+    otherwise:                  f_t = mu max(f_n, 0) sign(f_t*),
+                                xi' = -(f_t + gamma_t u) / k_t   (slip; spring reset)
+    F_i = f_n n + f_t t,   tau_i = -l_i f_t,   tau_j = -l_j f_t
+
+with lever arms to the middle of the overlap (``l_i + l_j = r``, so that a contact
+exerts no net torque and angular momentum is conserved to round-off). The history is
+a scalar along ``t``: it turns with the contact. A contact that opens forgets it.
+
+``k_t = k_n/3`` by default: the stiffness at which a sticking contact oscillates
+tangentially with the period of the normal oscillation. For disks (``I = m a²/2``, lever
+``l ~ a``, so ``l²/I = 2/m``) the contact point's tangential coordinate obeys
+``xi'' = -k_t (1/m_i + l_i²/I_i + 1/m_j + l_j²/I_j) xi``, i.e. ``6 k_t/m`` for two equal
+disks and ``3 k_t/m`` against a wall disk, against ``2 k_n/m`` and ``k_n/m`` normally:
+the periods match at ``k_t/k_n = 1/3`` in both cases. The usual ``2/7`` is the same
+condition for spheres (``I = 2/5 m a²``); on disks it would make the tangential period
+``sqrt(7/6)`` times the normal one. Details: ``docs/drum.md``, "Static friction".
+Everything here is in the drum's reduced units (``d_s``, ``m_s``, ``t0 = sqrt(d_s/g)``).
+
+Tangent dynamics: :func:`_jvp` is the exact derivative on each smooth piece (stick,
+slip, no friction) with respect to the relative position and velocity, both spins and
+the prior history, so the generic tangent pass linearises everything the step updates.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+from granpipe.engine.contract import ContactLaw, law_leaf, pair_force, pair_force_jvp
+from granpipe.errors import ConfigError
+
+__all__ = ["StaticFrictionLaw", "StaticFrictionParams", "K_T_OVER_K_N"]
+
+K_T_OVER_K_N = 1.0 / 3.0
+"""Default ratio of the tangential to the normal stiffness (docs/drum.md, "Static friction")."""
+
+# smooth pieces of the law
+NO_FRICTION = 0  # f_n <= 0: no tangential force, the spring relaxes to the dashpot
+STICK = 1
+SLIP = 2
+
+
+class StaticFrictionParams(NamedTuple):
+    """The kernels' parameters of :class:`StaticFrictionLaw` (reduced units)."""
+
+    k_n: float
+    gamma_n: float
+    k_t: float
+    gamma_t: float
+    mu: float
+
+
+@law_leaf(pair_force, StaticFrictionParams)
+def _force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
+    vn = vx * nx + vy * ny
+    u = vy * nx - vx * ny - lever_i * w_i - lever_j * w_j
+    f_n = -law.k_n * delta - law.gamma_n * vn
+    cap = law.mu * f_n
+    cap = cap if cap > 0.0 else 0.0
+    xi_new = xi + u * dt
+    damp = law.gamma_t * u
+    f_t = -law.k_t * xi_new - damp
+    slip = abs(f_t) > cap
+    if slip:
+        f_t = cap if f_t > 0.0 else -cap
+        xi_new = -(f_t + damp) / law.k_t
+    piece = NO_FRICTION if f_n <= 0.0 else (SLIP if slip else STICK)
+    fx = f_n * nx - f_t * ny
+    fy = f_n * ny + f_t * nx
+    return fx, fy, -lever_i * f_t, -lever_j * f_t, xi_new, f_n, f_t, piece
+
+
+@law_leaf(pair_force_jvp, StaticFrictionParams)
+def _jvp(
+    law,
+    nx,
+    ny,
+    curv,
+    lever_i,
+    lever_j,
+    vx,
+    vy,
+    w_i,
+    w_j,
+    m_eff,
+    f_n,
+    f_t,
+    piece,
+    dt,
+    ddx,
+    ddy,
+    dvx,
+    dvy,
+    dw_i,
+    dw_j,
+    dxi,
+):
+    # n turns by psi = curv (t . dd): dn = psi t, dt = -psi n; the lever arms grow by dr/2
+    psi = curv * (ddy * nx - ddx * ny)
+    dr = ddx * nx + ddy * ny
+    vn = vx * nx + vy * ny
+    ut = vy * nx - vx * ny
+    dvn = dvx * nx + dvy * ny + psi * ut
+    dlev = 0.5 * dr
+    du = dvy * nx - dvx * ny - psi * vn - dlev * (w_i + w_j) - lever_i * dw_i - lever_j * dw_j
+    dfn = -law.k_n * dr - law.gamma_n * dvn
+    if piece == STICK:
+        dxi_new = dxi + du * dt
+        dft = -law.k_t * dxi_new - law.gamma_t * du
+    else:
+        if piece == SLIP:
+            dft = law.mu * dfn if f_t > 0.0 else -law.mu * dfn
+        else:
+            dft = 0.0
+        dxi_new = -(dft + law.gamma_t * du) / law.k_t
+    a = dfn - f_t * psi  # along n
+    b = f_n * psi + dft  # along t
+    return (
+        a * nx - b * ny,
+        a * ny + b * nx,
+        -dlev * f_t - lever_i * dft,
+        -dlev * f_t - lever_j * dft,
+        dxi_new,
+    )
+
+
+def _positive(name, value, allow_zero=True):
+    value = float(value)
+    if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
+        raise ConfigError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {value!r}")
+    return value
+
+
+@dataclass(frozen=True)
+class StaticFrictionLaw(ContactLaw):
+    """The drum law with spin and static friction (module docstring; docs/drum.md).
+
+    Parameters
+    ----------
+    k_n : float [force/length]
+        Normal elastic coefficient (the drum's 565.97).
+    gamma_n, gamma_t : float [mass/time]
+        Normal and tangential viscous coefficients (8.7308, 6.8927), not scaled by mass.
+    mu : float
+        Friction coefficient (0.44).
+    k_t : float or None [force/length]
+        Tangential spring; default ``k_n/3`` (equal normal and tangential periods).
+    """
+
+    k_n: float
+    gamma_n: float
+    gamma_t: float
+    mu: float
+    k_t: float | None = None
+
+    name = "static_friction"
+    law_id = 2
+    has_spin = True
+    has_history = True
+
+    def __post_init__(self):
+        _positive("k_n", self.k_n, allow_zero=False)
+        for name in ("gamma_n", "gamma_t", "mu"):
+            _positive(name, getattr(self, name))
+        if self.k_t is not None:
+            _positive("k_t", self.k_t, allow_zero=False)
+
+    @property
+    def k_tangential(self) -> float:
+        return K_T_OVER_K_N * self.k_n if self.k_t is None else float(self.k_t)
+
+    def params(self) -> StaticFrictionParams:
+        return StaticFrictionParams(
+            float(self.k_n),
+            float(self.gamma_n),
+            self.k_tangential,
+            float(self.gamma_t),
+            float(self.mu),
+        )

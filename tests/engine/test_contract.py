@@ -1,0 +1,274 @@
+"""The contact-law contract: every registered law through the same generic tests.
+
+For each law (drum, box, static friction): its Jacobian leaf against central finite
+differences of its force leaf on every smooth piece, and the tangent vector of the
+generic passes against twin trajectories on a settled pile in a turning drum. For the
+static-friction law also conservation (momentum, angular momentum with spin, energy of
+an elastic sticking contact), and for the drum law its own four-lane passes against
+the generic reference.
+"""
+
+import numpy as np
+import pytest
+
+from granpipe.engine import (
+    BoxLaw,
+    DrumLaw,
+    Simulation,
+    StaticFrictionLaw,
+    WallDisks,
+    registered_laws,
+)
+from granpipe.engine.static_friction import K_T_OVER_K_N
+from tests.engine.conftest import DRUM_LAW, DT_DRUM
+
+OMEGA = -2.4417e-4  # the drum of docs/drum.md, clockwise, in its reduced units
+
+# one instance per registered law, in the drum's reduced units (the box law with
+# stiffness and damping of the drum's order, so that the same time step resolves it)
+LAWS = {
+    "drum": DRUM_LAW,
+    "box": BoxLaw(kappa_n=565.97, kappa_t=150.0, gamma_n=8.0, gamma_t=8.0, mu=0.44),
+    "static_friction": StaticFrictionLaw(k_n=565.97, gamma_n=8.7308, gamma_t=6.8927, mu=0.44),
+}
+
+
+def test_every_registered_law_is_tested():
+    assert set(registered_laws()) == set(LAWS)
+
+
+def central_jacobian(f, x, h):
+    cols = []
+    for k in range(x.size):
+        e = np.zeros_like(x)
+        e[k] = h
+        cols.append((f(x + e) - f(x - e)) / (2 * h))
+    return np.array(cols).T
+
+
+def random_contact(rng):
+    """A random touching pair: (d, v, spin_i, spin_j, a_i, a_j, m_eff, xi)."""
+    a_i, a_j = rng.uniform(0.45, 0.6, 2)
+    r = (a_i + a_j) * rng.uniform(0.97, 0.999)
+    phi = rng.uniform(0, 2 * np.pi)
+    d = r * np.array([np.cos(phi), np.sin(phi)])
+    v = rng.normal(0, 0.3, 2)
+    spins = rng.normal(0, 0.5, 2)
+    return d, v, *spins, a_i, a_j, rng.uniform(0.3, 1.0), rng.normal(0, 2e-3)
+
+
+@pytest.mark.parametrize("name", sorted(LAWS))
+def test_jacobian_leaf_matches_central_differences_on_every_piece(name):
+    """``pair_jacobian`` (the law's Jacobian leaf) against central differences of ``pair``
+    in all seven inputs, at contacts drawn until every smooth piece was seen."""
+    law = LAWS[name]
+    rng = np.random.default_rng(3)
+    dt = DT_DRUM
+    seen = set()
+    for _ in range(400):
+        d, v, wi, wj, ai, aj, m_eff, xi = random_contact(rng)
+        _, piece = law.pair(d, v, wi, wj, ai, aj, m_eff, xi, dt)
+
+        def f(x, ai=ai, aj=aj, m_eff=m_eff):
+            return law.pair(x[:2], x[2:4], x[4], x[5], ai, aj, m_eff, x[6], dt)[0]
+
+        x = np.array([*d, *v, wi, wj, xi])
+        fd = central_jacobian(f, x, 1e-7)
+        # a step across a switch between pieces spoils the differences: skip those
+        pieces = {law.pair(x[:2] + s * e[:2], x[2:4] + s * e[2:4], x[4] + s * e[4],
+                           x[5] + s * e[5], ai, aj, m_eff, x[6] + s * e[6], dt)[1]
+                  for s in (1e-7, -1e-7) for e in np.eye(7)}  # fmt: skip
+        if pieces != {piece}:
+            continue
+        jac = law.pair_jacobian(d, v, wi, wj, ai, aj, m_eff, xi, dt)
+        scale = np.abs(fd).max(axis=1, keepdims=True) + 1e-12
+        np.testing.assert_allclose(jac / scale, fd / scale, atol=2e-6, err_msg=f"piece {piece}")
+        seen.add(piece)
+    assert len(seen) >= (2 if name != "drum" else 3), seen
+
+
+def twin_error(sim, settled, du, dspin, eps, steps):
+    """Relative distance between (twin - base)/eps and the tangent vector after ``steps``."""
+    is_wall = settled.is_wall
+    r0, v0 = settled.positions.copy(), settled.velocities.copy()
+    spins = settled.spins.copy() if sim.law.has_spin else None
+    kw = dict(is_wall=is_wall)
+    base = sim.new_state(r0, settled.radii, settled.masses, velocities=v0, spins=spins, **kw)
+    sim.set_tangent(base, du[:, 0], du[:, 1], dspin)
+    sim.run(base, steps, tangent=True)
+    s1 = None if spins is None else spins + eps * dspin
+    twin = sim.new_state(
+        r0 + eps * du[:, 0], settled.radii, settled.masses, velocities=v0 + eps * du[:, 1],
+        spins=s1, **kw,
+    )  # fmt: skip
+    sim.run(twin, steps)
+    tr, tv = base.tangent
+    mob = ~is_wall
+    gr = (twin.positions - base.positions) / eps
+    gv = (twin.velocities - base.velocities) / eps
+    gw = (twin.spins - base.spins) / eps
+    tw = base.tangent_spin
+    err = ((gr - tr)[mob] ** 2).sum() + ((gv - tv)[mob] ** 2).sum() + ((gw - tw)[mob] ** 2).sum()
+    ref = (tr[mob] ** 2).sum() + (tv[mob] ** 2).sum() + (tw[mob] ** 2).sum()
+    return np.sqrt(err / ref)
+
+
+@pytest.fixture(scope="module")
+def piles(settled_drum_pile):
+    """Per law: (generic-pass simulation of the turning drum, a pile settled under it)."""
+    sim0, settled = settled_drum_pile
+    out = {}
+    for name, law in LAWS.items():
+        sim = Simulation(law, dt=DT_DRUM, wall_disks=WallDisks(omega=OMEGA), passes="generic")
+        spins = np.zeros(settled.n) if law.has_spin else None
+        state = sim.new_state(
+            settled.positions, settled.radii, settled.masses, spins=spins, is_wall=settled.is_wall
+        )
+        sim.run(state, 3000)  # settle the history and spins of this law
+        out[name] = (sim, state)
+    return out
+
+
+@pytest.mark.parametrize("name", sorted(LAWS))
+def test_twin_trajectory_agrees_with_generic_tangent_vector(piles, name):
+    """(state(eps du0) - state)/eps against the tangent vector of the generic passes after
+    2,000 steps on a settled pile in the turning drum: relative error O(eps) (positions,
+    velocities and, with spin, spins; the shear histories' perturbations drive them)."""
+    sim, settled = piles[name]
+    rng = np.random.default_rng(11)
+    mob = ~settled.is_wall
+    du = np.where(mob[:, None, None], rng.uniform(-1, 1, (settled.n, 2, 2)), 0.0)
+    dspin = np.where(mob, rng.uniform(-1, 1, settled.n), 0.0) if sim.law.has_spin else None
+    e5 = twin_error(sim, settled, du, dspin, 1e-5, 2000)
+    e6 = twin_error(sim, settled, du, dspin, 1e-6, 2000)
+    assert e6 < 1e-5
+    assert 5 < e5 / e6 < 20
+
+
+def test_drum_law_own_passes_agree_with_the_generic_reference(settled_drum_pile):
+    """The drum law's vectorised passes and the generic scalar passes: the same trajectory,
+    tangent vector and lambda to round-off (the sums run in other orders)."""
+    _, settled = settled_drum_pile
+    rng = np.random.default_rng(4)
+    runs = {}
+    for passes in ("law", "generic"):
+        sim = Simulation(DRUM_LAW, dt=DT_DRUM, wall_disks=WallDisks(omega=OMEGA), passes=passes)
+        st = sim.new_state(
+            settled.positions, settled.radii, settled.masses, is_wall=settled.is_wall
+        )
+        sim.random_tangent(st, np.random.default_rng(4))
+        rec = sim.run(st, 2000, stride=100, tangent=True)
+        runs[passes] = (st, rec)
+    (a, ra), (b, rb) = runs["law"], runs["generic"]
+    np.testing.assert_allclose(a.positions, b.positions, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(a.velocities, b.velocities, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(a.tangent[0], b.tangent[0], rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(ra.local_lyapunov, rb.local_lyapunov, rtol=1e-8)
+    np.testing.assert_allclose(ra.global_speed, rb.global_speed, rtol=1e-10)
+    assert rng is not None
+
+
+def free_pair(law, dt, v=(0.4, 0.05), spins=(0.3, -1.0)):
+    sim = Simulation(law, dt=dt, gravity=(0.0, 0.0))
+    pos = np.array([[0.0, 0.0], [1.01, 0.2]])
+    vel = np.array([v, [-v[0], 0.0]])
+    return sim, sim.new_state(pos, np.full(2, 0.5), np.array([1.0, 1.3]), velocities=vel,
+                              spins=np.array(spins))  # fmt: skip
+
+
+def momenta(st):
+    m = st.masses
+    r, v = st.positions, st.velocities
+    inertia = 0.5 * m * st.radii**2
+    p = (m[:, None] * v).sum(0)
+    ang = (m * (r[:, 0] * v[:, 1] - r[:, 1] * v[:, 0])).sum() + (inertia * st.spins).sum()
+    return p, ang
+
+
+def test_static_friction_conserves_momentum_and_angular_momentum_to_round_off():
+    """A free colliding pair with spin, damping and sliding: linear and angular momentum
+    (about the origin, spin included) are conserved by the discrete map to round-off,
+    because the contact point sits mid-overlap (l_i + l_j = r)."""
+    law = StaticFrictionLaw(k_n=565.97, gamma_n=8.7308, gamma_t=6.8927, mu=0.44)
+    sim, st = free_pair(law, DT_DRUM)
+    p0, l0 = momenta(st)
+    for _ in range(10):
+        sim.run(st, 300)
+        p, ang = momenta(st)
+        np.testing.assert_allclose(p, p0, rtol=0, atol=1e-14)
+        assert abs(ang - l0) < 1e-13 * (1 + abs(l0))
+    assert not np.allclose(st.spins, [0.3, -1.0])  # the contact did turn the disks
+
+
+def contact_energy(law, st):
+    """Kinetic energy plus the normal and tangential springs' energy."""
+    d = st.positions[0] - st.positions[1]
+    overlap = max(0.0, 1.0 - np.hypot(*d))
+    xi = st._s["pair_xi"][0, 0] if overlap > 0 else 0.0
+    return st.kinetic_energy() + 0.5 * law.k_n * overlap**2 + 0.5 * law.k_tangential * xi**2
+
+
+def test_static_friction_elastic_sticking_contact_conserves_energy_to_order_dt2():
+    """No damping and a friction coefficient that never lets the contact slide: the energy
+    (kinetic, translational and rotational, plus both springs) is conserved up to the
+    integrator's O(dt²) error, measured by halving dt."""
+    law = StaticFrictionLaw(k_n=565.97, gamma_n=0.0, gamma_t=0.0, mu=50.0)
+    errs = []
+    for dt in (2e-3, 1e-3):
+        sim, st = free_pair(law, dt, v=(0.15, 0.0))
+        e0 = contact_energy(law, st)
+        worst, touched = 0.0, False
+        for _ in range(int(0.4 / dt)):
+            sim.run(st, 1)
+            apart = np.hypot(*(st.positions[0] - st.positions[1])) > 1.0
+            if touched and apart:
+                break  # the history of an opened contact is dropped: stop at the opening
+            touched = touched or not apart
+            worst = max(worst, abs(contact_energy(law, st) - e0))
+        assert touched
+        errs.append(worst / e0)
+    assert errs[1] < 1e-3
+    assert 3.0 < errs[0] / errs[1] < 5.0
+
+
+def test_static_friction_default_tangential_stiffness_matches_periods():
+    """k_t = k_n/3 gives a sticking contact the normal period: measured on a disk that
+    rocks on a fixed wall disk, against the normal oscillation of the same contact."""
+    assert K_T_OVER_K_N == pytest.approx(1 / 3)
+    law = StaticFrictionLaw(k_n=565.97, gamma_n=0.0, gamma_t=0.0, mu=50.0)
+    assert law.k_tangential == pytest.approx(565.97 / 3)
+    # normal: m_eff = m against a wall disk, omega_n² = k_n/m; tangential: 3 k_t/m
+    m = 1.0
+    w_n = np.sqrt(law.k_n / m)
+    w_t = np.sqrt(3 * law.k_tangential / m)
+    assert w_t == pytest.approx(w_n)
+    # measured: a disk resting under gravity on a fixed wall disk (at its equilibrium
+    # overlap), kicked tangentially; its spring's history oscillates at w_t (the rolling
+    # mode leaves the history alone)
+    dt = 1e-4
+    sim = Simulation(law, dt=dt)
+    pos = np.array([[0.0, 1.0 - m / law.k_n], [0.0, 0.0]])
+    st = sim.new_state(pos, np.full(2, 0.5), np.array([m, 1.0]), is_wall=np.array([False, True]),
+                       velocities=np.array([[1e-3, 0.0], [0.0, 0.0]]))  # fmt: skip
+    xs = []
+    for _ in range(20_000):
+        sim.run(st, 1)
+        xs.append(st._s["pair_xi"][0, 0])
+    xs = np.array(xs) - np.mean(xs)
+    k = np.flatnonzero(np.sign(xs[1:]) != np.sign(xs[:-1]))
+    t_cross = (k + xs[k] / (xs[k] - xs[k + 1])) * dt  # linear interpolation
+    period = 2 * np.mean(np.diff(t_cross))
+    assert period == pytest.approx(2 * np.pi / w_t, rel=0.01)
+
+
+def test_generic_passes_refuse_flat_walls_and_a_drum_law_state():
+    from granpipe.engine import FlatWalls
+    from granpipe.errors import ConfigError
+
+    law = LAWS["static_friction"]
+    with pytest.raises(ConfigError, match="flat walls"):
+        Simulation(law, dt=1e-3, flat_walls=FlatWalls(x_left=0.0, x_right=10.0))
+    sim_d = Simulation(DrumLaw(k_n=1.0, gamma_n=0.0, gamma_t=0.0, mu=0.0), dt=1e-3)
+    st = sim_d.new_state(np.zeros((1, 2)), [0.5], [1.0])
+    with pytest.raises(ConfigError, match="different contact law"):
+        Simulation(law, dt=1e-3).run(st, 1)
