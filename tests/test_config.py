@@ -6,7 +6,13 @@ import yaml
 from granpipe import config
 from granpipe.errors import ConfigError
 
-SCALES = ["config/config.yaml", "config/quick.yaml", "config/validation.yaml", "config/paper.yaml"]
+SCALES = [
+    "config/config.yaml",
+    "config/quick.yaml",
+    "config/validation.yaml",
+    "config/paper.yaml",
+    "config/box_walls.yaml",
+]
 
 
 @pytest.fixture(params=SCALES)
