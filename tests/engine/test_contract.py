@@ -261,10 +261,14 @@ def test_static_friction_default_tangential_stiffness_matches_periods():
     assert period == pytest.approx(2 * np.pi / w_t, rel=0.01)
 
 
-def test_generic_passes_refuse_flat_walls_and_a_drum_law_state():
+def test_bad_coefficients_flat_walls_and_a_drum_law_state_are_refused():
     from granpipe.engine import FlatWalls
     from granpipe.errors import ConfigError
 
+    with pytest.raises(ConfigError, match="k_t must be > 0"):
+        StaticFrictionLaw(k_n=1.0, gamma_n=0.0, gamma_t=0.0, mu=0.4, k_t=0.0)
+    with pytest.raises(ConfigError, match="mu must be >= 0"):
+        StaticFrictionLaw(k_n=1.0, gamma_n=0.0, gamma_t=0.0, mu=float("nan"))
     law = LAWS["static_friction"]
     with pytest.raises(ConfigError, match="flat walls"):
         Simulation(law, dt=1e-3, flat_walls=FlatWalls(x_left=0.0, x_right=10.0))

@@ -36,9 +36,12 @@ opposite) and torques are counter-clockwise positive.
 from __future__ import annotations
 
 import inspect
+import math
 from typing import ClassVar, NamedTuple
 
 import numpy as np
+
+from granpipe.errors import ConfigError
 
 __all__ = [
     "ContactLaw",
@@ -47,6 +50,7 @@ __all__ = [
     "pair_force_jvp",
     "law_leaf",
     "registered_laws",
+    "checked_parameter",
 ]
 
 _REGISTRY: dict[str, type] = {}
@@ -283,6 +287,16 @@ def _pair_geometry(d, radius_i, radius_j):
         0.5 * (r + radius_i - radius_j),
         0.5 * (r + radius_j - radius_i),
     )
+
+
+def checked_parameter(name: str, value, allow_zero: bool = True) -> float:
+    """``value`` as a float, or a :class:`~granpipe.errors.ConfigError` naming ``name``
+    unless it is finite and ``>= 0`` (``> 0`` without ``allow_zero``): the check every
+    law's ``__post_init__`` makes of its coefficients."""
+    value = float(value)
+    if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
+        raise ConfigError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {value!r}")
+    return value
 
 
 def registered_laws() -> dict[str, type]:

@@ -41,7 +41,13 @@ from typing import NamedTuple
 import numpy as np
 
 from granpipe._jit import njit
-from granpipe.engine.contract import ContactLaw, law_leaf, pair_force, pair_force_jvp
+from granpipe.engine.contract import (
+    ContactLaw,
+    checked_parameter,
+    law_leaf,
+    pair_force,
+    pair_force_jvp,
+)
 from granpipe.errors import ConfigError
 
 __all__ = [
@@ -434,13 +440,6 @@ def _box_leaf_jvp(
     )
 
 
-def _positive(name, value, allow_zero=True):
-    value = float(value)
-    if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
-        raise ConfigError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {value!r}")
-    return value
-
-
 @dataclass(frozen=True)
 class DrumLaw(ContactLaw):
     """Linear spring-dashpot with viscous friction capped at Coulomb (docs/drum.md).
@@ -467,9 +466,9 @@ class DrumLaw(ContactLaw):
     has_history = False
 
     def __post_init__(self):
-        _positive("k_n", self.k_n, allow_zero=False)
+        checked_parameter("k_n", self.k_n, allow_zero=False)
         for name in ("gamma_n", "gamma_t", "mu"):
-            _positive(name, getattr(self, name))
+            checked_parameter(name, getattr(self, name))
 
     def params(self) -> np.ndarray:
         """Parameter vector passed to the kernels: ``[k_n, gamma_n, gamma_t, mu]``."""
@@ -588,13 +587,13 @@ class BoxLaw(ContactLaw):
     has_history = True
 
     def __post_init__(self):
-        _positive("kappa_n", self.kappa_n, allow_zero=False)
+        checked_parameter("kappa_n", self.kappa_n, allow_zero=False)
         for name in ("kappa_t", "gamma_n", "gamma_t", "mu"):
-            _positive(name, getattr(self, name))
+            checked_parameter(name, getattr(self, name))
         if self.mu_wall is not None:
-            _positive("mu_wall", self.mu_wall)
+            checked_parameter("mu_wall", self.mu_wall)
         if self.mu_side is not None:
-            _positive("mu_side", self.mu_side)
+            checked_parameter("mu_side", self.mu_side)
 
     @property
     def mu_w(self) -> float:

@@ -35,12 +35,16 @@ the prior history, so the generic tangent pass linearises everything the step up
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from granpipe.engine.contract import ContactLaw, law_leaf, pair_force, pair_force_jvp
-from granpipe.errors import ConfigError
+from granpipe.engine.contract import (
+    ContactLaw,
+    checked_parameter,
+    law_leaf,
+    pair_force,
+    pair_force_jvp,
+)
 
 __all__ = ["StaticFrictionLaw", "StaticFrictionParams", "K_T_OVER_K_N"]
 
@@ -137,13 +141,6 @@ def _jvp(
     )
 
 
-def _positive(name, value, allow_zero=True):
-    value = float(value)
-    if not math.isfinite(value) or value < 0 or (value == 0 and not allow_zero):
-        raise ConfigError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {value!r}")
-    return value
-
-
 @dataclass(frozen=True)
 class StaticFrictionLaw(ContactLaw):
     """The drum law with spin and static friction (module docstring; docs/drum.md).
@@ -172,11 +169,11 @@ class StaticFrictionLaw(ContactLaw):
     has_history = True
 
     def __post_init__(self):
-        _positive("k_n", self.k_n, allow_zero=False)
+        checked_parameter("k_n", self.k_n, allow_zero=False)
         for name in ("gamma_n", "gamma_t", "mu"):
-            _positive(name, getattr(self, name))
+            checked_parameter(name, getattr(self, name))
         if self.k_t is not None:
-            _positive("k_t", self.k_t, allow_zero=False)
+            checked_parameter("k_t", self.k_t, allow_zero=False)
 
     @property
     def k_tangential(self) -> float:
