@@ -1,9 +1,11 @@
 """granpipe.engine: a small, jitted 2D DEM engine (docs/architecture.md, "The engine").
 
 Disks in the plane (second coordinate vertical), struct-of-arrays float64, velocity
-Verlet with gravity, cell lists feeding Verlet lists with a skin, two contact laws
-(each a force function and its Jacobian), walls with prescribed motion, and tangent
-dynamics (the exact linearization of the discrete map) for the drum law.
+Verlet with gravity, cell lists feeding Verlet lists with a skin, contact laws under one
+contract (each a force leaf and its Jacobian leaf; :mod:`granpipe.engine.contract`,
+docs/architecture.md "Adding a contact law"), walls with prescribed motion, and tangent
+dynamics (the exact linearization of the discrete map): for every law on the generic
+passes (:mod:`granpipe.engine.generic`), and for the drum law on its own vectorised ones.
 
 Objects
 -------
@@ -16,17 +18,23 @@ Objects
     Box paper App. A: m_eff-scaled damping, tangential spring with history truncated
     at Coulomb, spin with ``I = m sigma²/8``. ``.force(...)``, ``.jacobian(...)`` (4 x 6),
     ``.contact_time(m_eff)``. ``mu_side = 0`` gives frictionless side walls.
+``StaticFrictionLaw(k_n, gamma_n, gamma_t, mu, k_t=None)``
+    The drum's normal law with spin (``I = m d²/8``) and a Cundall–Strack tangential
+    spring truncated at Coulomb, ``k_t = k_n/3`` by default (docs/drum.md, "Static
+    friction"); runs on the generic passes. Every law has ``.pair(...)`` and
+    ``.pair_jacobian(...)`` (5 x 7) through its contract leaves.
 ``WallDisks(centre, omega, omega_after=None, t_switch=inf)``
     Rigid rotation of the disks flagged ``is_wall`` (counter-clockwise positive; the
     drum stop is ``omega_after=0`` at ``t_switch``).
 ``FlatWalls(x_left, x_right, bottom, z0, amplitude, omega, phase, ramp_start, ramp_time)``
     Vertical side lines and a bottom at ``z_b(t) = z0 + A r(t) sin(omega t + phase)``.
 ``Simulation(law, dt, gravity=(0, -1), wall_disks=None, flat_walls=None, skin=None,
-parallel=True)``
+parallel=True, max_overlap=0.5, passes="law")``
     ``.new_state(positions, radii, masses, *, velocities, spins, is_wall, inertia, time)
     -> State`` (or ``Ensemble`` for a leading replica axis);
     ``.run(state, n_steps, *, stride=0, tangent=False) -> Record`` advances in place;
-    ``.set_tangent(state, dr, dv)``, ``.random_tangent(state, rng, fraction=0.1)``;
+    ``.set_tangent(state, dr, dv, dspin=None)``, ``.random_tangent(state, rng, fraction=0.1)``;
+    ``passes="generic"`` runs any law on the contract's reference passes (no flat walls);
     ``.refresh(state)`` after editing a state in place; ``.replace(**changes)``.
 ``State`` / ``Ensemble``
     Views ``positions, velocities, forces, spins, torques, radii, masses, is_wall,
