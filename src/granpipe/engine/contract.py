@@ -41,6 +41,7 @@ from typing import ClassVar, NamedTuple
 
 import numpy as np
 
+from granpipe._jit import njit
 from granpipe.errors import ConfigError
 
 __all__ = [
@@ -133,6 +134,48 @@ def pair_force_jvp(
     dfx, dfy, dtau_i, dtau_j, dxi_new : float
     """
     raise NotImplementedError("a generic leaf: implemented per law (numba overload)")
+
+
+@njit
+def perturbed_kinematics(
+    nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, ddx, ddy, dvx, dvy, dw_i, dw_j
+):  # fmt: skip
+    """The perturbed kinematics of one contact, shared by the Jacobian leaves.
+
+    A perturbation ``dd`` of the relative position turns the normal by
+    ``psi = curv (t . dd)`` (``dn = psi t``, ``dt = -psi n``; ``curv = 1/r``, 0 for a flat
+    wall) and moves the mid-overlap lever arms by ``dr/2`` with ``dr = n . dd``.
+
+    Returns
+    -------
+    psi, dr : float
+    dvn, dvt : float
+        Perturbations of the normal relative velocity and of the slip velocity at the
+        contact point ``v . t - l_i w_i - l_j w_j``.
+    """
+    psi = curv * (ddy * nx - ddx * ny)
+    dr = ddx * nx + ddy * ny
+    vn = vx * nx + vy * ny
+    ut = vy * nx - vx * ny
+    dvn = dvx * nx + dvy * ny + psi * ut
+    dlev = 0.5 * dr
+    dvt = dvy * nx - dvx * ny - psi * vn - dlev * (w_i + w_j) - lever_i * dw_i - lever_j * dw_j
+    return psi, dr, dvn, dvt
+
+
+@njit
+def perturbed_force(nx, ny, psi, dr, f_n, f_t, dfn, dft, lever_i, lever_j):
+    """``(dF_x, dF_y, dtau_i, dtau_j)`` of ``F = f_n n + f_t t``, ``tau = -l f_t`` from the
+    perturbed components ``dfn, dft`` and the frame's turn ``psi`` (lever arms + dr/2)."""
+    a = dfn - f_t * psi  # along n
+    b = f_n * psi + dft  # along t
+    dlev = 0.5 * dr
+    return (
+        a * nx - b * ny,
+        a * ny + b * nx,
+        -dlev * f_t - lever_i * dft,
+        -dlev * f_t - lever_j * dft,
+    )
 
 
 def law_leaf(generic, params_type):

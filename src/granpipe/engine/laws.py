@@ -47,6 +47,8 @@ from granpipe.engine.contract import (
     law_leaf,
     pair_force,
     pair_force_jvp,
+    perturbed_force,
+    perturbed_kinematics,
 )
 from granpipe.errors import ConfigError
 
@@ -289,13 +291,9 @@ def box_force_jvp(
     -------
     dfx, dfy, dtau_i, dtau_j, dxi_new : float
     """
-    psi = curv * (ddy * nx - ddx * ny)
-    dr = ddx * nx + ddy * ny
-    vn = vx * nx + vy * ny
-    u = vy * nx - vx * ny
-    dvn = dvx * nx + dvy * ny + psi * u
-    dlev = 0.5 * dr
-    dvt = dvy * nx - dvx * ny - psi * vn - dlev * (w_i + w_j) - lever_i * dw_i - lever_j * dw_j
+    psi, dr, dvn, dvt = perturbed_kinematics(
+        nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, ddx, ddy, dvx, dvy, dw_i, dw_j
+    )
     dfn = -kappa_n * dr - gamma_n * m_eff * dvn
     sgn = 1.0 if f_t > 0.0 else -1.0
     sfn = 1.0 if f_n > 0.0 else -1.0
@@ -307,11 +305,10 @@ def box_force_jvp(
     else:
         dxi_new = dxi + dvt * dt
         dft = -kappa_t * dxi_new - ddamp
-    a = dfn - f_t * psi
-    b = f_n * psi + dft
-    dtau_i = -dlev * f_t - lever_i * dft
-    dtau_j = -dlev * f_t - lever_j * dft
-    return a * nx - b * ny, a * ny + b * nx, dtau_i, dtau_j, dxi_new
+    dfx, dfy, dtau_i, dtau_j = perturbed_force(
+        nx, ny, psi, dr, f_n, f_t, dfn, dft, lever_i, lever_j
+    )
+    return dfx, dfy, dtau_i, dtau_j, dxi_new
 
 
 # --------------------------------------------------------------------------- the contract

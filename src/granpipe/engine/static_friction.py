@@ -44,6 +44,8 @@ from granpipe.engine.contract import (
     law_leaf,
     pair_force,
     pair_force_jvp,
+    perturbed_force,
+    perturbed_kinematics,
 )
 
 __all__ = ["StaticFrictionLaw", "StaticFrictionParams", "K_T_OVER_K_N"]
@@ -112,14 +114,9 @@ def _jvp(
     dw_j,
     dxi,
 ):
-    # n turns by psi = curv (t . dd): dn = psi t, dt = -psi n; the lever arms grow by dr/2
-    psi = curv * (ddy * nx - ddx * ny)
-    dr = ddx * nx + ddy * ny
-    vn = vx * nx + vy * ny
-    ut = vy * nx - vx * ny
-    dvn = dvx * nx + dvy * ny + psi * ut
-    dlev = 0.5 * dr
-    du = dvy * nx - dvx * ny - psi * vn - dlev * (w_i + w_j) - lever_i * dw_i - lever_j * dw_j
+    psi, dr, dvn, du = perturbed_kinematics(
+        nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, ddx, ddy, dvx, dvy, dw_i, dw_j
+    )
     dfn = -law.k_n * dr - law.gamma_n * dvn
     if piece == STICK:
         dxi_new = dxi + du * dt
@@ -130,15 +127,10 @@ def _jvp(
         else:
             dft = 0.0
         dxi_new = -(dft + law.gamma_t * du) / law.k_t
-    a = dfn - f_t * psi  # along n
-    b = f_n * psi + dft  # along t
-    return (
-        a * nx - b * ny,
-        a * ny + b * nx,
-        -dlev * f_t - lever_i * dft,
-        -dlev * f_t - lever_j * dft,
-        dxi_new,
+    dfx, dfy, dtau_i, dtau_j = perturbed_force(
+        nx, ny, psi, dr, f_n, f_t, dfn, dft, lever_i, lever_j
     )
+    return dfx, dfy, dtau_i, dtau_j, dxi_new
 
 
 @dataclass(frozen=True)
