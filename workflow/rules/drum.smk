@@ -4,7 +4,7 @@
 # so a config edit reruns exactly what it touches: a point's physics/settle/protocol or
 # batch_size -> that point's simulations and everything after; exclude_flagged ->
 # ensembles onwards; fits -> fits, summary and figures; figures -> figures. n_replicas
-# only adds batches; a new period or start-up only adds its point.
+# only adds batches; a new period, start-up or friction law only adds its point.
 
 import re
 
@@ -19,7 +19,7 @@ DRUM_BATCH_MIN = DRUM["ensemble"]["batch_size"] * DRUM["resources"]["replica_min
 
 
 DRUM_RUNS = {p: [out("drum", f) for f in drum_layout.run_files(DRUM, p)] for p in DRUM_POINTS}
-# A point's folder from three wildcards: a wildcard value holding "," or "=" would break
+# A point's folder from four wildcards: a wildcard value holding "," or "=" would break
 # the job specifications Snakemake passes to grouped cluster jobs.
 DRUM_POINT = drum_layout.POINT_PATTERN
 
@@ -29,6 +29,7 @@ wildcard_constraints:
     drum_n=r"\d+",
     drum_period=r"[0-9.e+]+",
     drum_startup="|".join(re.escape(s) for s in drum_layout.STARTUPS),
+    drum_friction="|".join(re.escape(s) for s in drum_layout.FRICTIONS),
 
 
 rule drum_init:

@@ -8,11 +8,11 @@ fills its ``--params`` once (:func:`load`) and hands the result down read-only
 (d_s, m_s, t0 = sqrt(d_s/g)); protocol and analysis times are in seconds, as the paper
 quotes them (:func:`granpipe.drum.protocol.steps` converts them to whole steps of Δt).
 
-One folder per parameter point (:func:`points`), named after
-its size, drum period and start-up, e.g. ``N=736,period=900s,startup=paper``. Replicas
+One folder per parameter point (:func:`points`), named after its size, drum period,
+start-up and friction law, e.g. ``N=736,period=900s,startup=paper,friction=viscous``. Replicas
 come in fixed batches of ``ensemble.batch_size`` (:func:`granpipe.seeds.batch_replicas`),
-so a larger ``n_replicas`` only appends batches, and a new period or start-up only adds
-its own point. The workflow (``workflow/rules/drum.smk``) and ``granpipe status`` list
+so a larger ``n_replicas`` only appends batches, and a new period, start-up or friction
+law only adds its own point. The workflow (``workflow/rules/drum.smk``) and ``granpipe status`` list
 files through these functions, and the config subsets each rule depends on are built
 here too (:func:`rule_params`).
 """
@@ -35,6 +35,7 @@ from .model import omega
 __all__ = [
     "POINT_PATTERN",
     "STARTUPS",
+    "FRICTIONS",
     "point_of",
     "point_name",
     "point_names",
@@ -64,6 +65,7 @@ __all__ = [
     "reference_point",
     "point_label",
     "seed_physics",
+    "trajectory_keys",
 ]
 
 FIGURES = {
@@ -81,29 +83,35 @@ COMPARISON_FIGURES = {
 """Figures across points: V and λ̄ of each start-up; the lags against the drum's Ω."""
 
 
-POINT_PATTERN = "N={drum_n},period={drum_period}s,startup={drum_startup}"
+POINT_PATTERN = "N={drum_n},period={drum_period}s,startup={drum_startup},friction={drum_friction}"
 """A point's folder name as Snakemake wildcards (:func:`point_name` fills them)."""
 
 STARTUPS = ("paper", "settled")
+FRICTIONS = ("viscous", "static")
 
 
 def point_of(wildcards) -> str:
-    """The point name of a job's wildcards ``drum_n``, ``drum_period``, ``drum_startup``."""
+    """The point name of a job's wildcards ``drum_n``, ``drum_period``, ``drum_startup``,
+    ``drum_friction``."""
     return POINT_PATTERN.format(
         drum_n=wildcards.drum_n, drum_period=wildcards.drum_period,
-        drum_startup=wildcards.drum_startup,
+        drum_startup=wildcards.drum_startup, drum_friction=wildcards.drum_friction,
     )  # fmt: skip
 
 
 def point_name(point: Mapping) -> str:
-    """Folder name of a parameter point, e.g. ``N=736,period=900s,startup=paper``."""
+    """Folder name of a parameter point, e.g.
+    ``N=736,period=900s,startup=paper,friction=viscous``."""
     sec = load(point)
     ph = sec["physics"]
     n = int(ph["n_small"]) + int(ph["n_large"])
     period = ph["period_s"]
     if isinstance(period, list | tuple):
         raise ValueError("point_name needs one point's section (points)")
-    return f"N={n},period={float(period):.4g}s,startup={sec['protocol']['startup']}"
+    return (
+        f"N={n},period={float(period):.4g}s,startup={sec['protocol']['startup']},"
+        f"friction={ph['friction']}"
+    )
 
 
 def point_sections(section: Mapping) -> dict[str, dict]:
@@ -119,20 +127,20 @@ def rule_params(section: Mapping) -> dict[str, dict]:
     """The config subset each drum rule depends on (its ``params:``), per point.
 
     Returns ``{"sim": {point: ...}, "ensemble": ..., "fits": ..., "figures": ...,
-    "summary": ...}``: a simulation depends on its point's physics, settle (settled
-    start-up only), protocol and batch size; the ensemble on ``exclude_flagged``; the
-    fits on that and ``fits`` (and its point's label, for the row names); the figures on
-    ``figures`` and the list of points (name, period, start-up, label; the reference first:
-    a list, because the JSON of the params has sorted keys). Editing the physics of one
+    "summary": ...}``: a simulation depends on its point's physics (``k_t`` only under
+    static friction), settle (settled start-up only), protocol and batch size
+    (:func:`trajectory_keys`); the ensemble on ``exclude_flagged``; the fits on that and
+    ``fits`` (and its point's label, for the row names); the figures on ``figures`` and
+    the list of points (name, period, start-up, friction, label; the reference first: a
+    list, because the JSON of the params has sorted keys). Editing the physics of one
     point, or adding a point, changes no other point's subsets.
     """
     sec = filled(section)
     sim, fits, table = {}, {}, []
     ensemble = {"ensemble": {"exclude_flagged": sec["ensemble"]["exclude_flagged"]}}
     for name, p in point_sections(sec).items():
-        keys = [k for k in PHYSICS_KEYS if k != "settle" or p["protocol"]["startup"] == "settled"]
         sim[name] = {
-            **{k: p[k] for k in keys},
+            **trajectory_keys(p),
             "ensemble": {"batch_size": p["ensemble"]["batch_size"]},
         }
         fits[name] = {**ensemble, "fits": sec["fits"], "label": point_label(p, sec)}
@@ -140,6 +148,7 @@ def rule_params(section: Mapping) -> dict[str, dict]:
             "name": name,
             "period_s": p["physics"]["period_s"],
             "startup": p["protocol"]["startup"],
+            "friction": p["physics"]["friction"],
             "label": fits[name]["label"],
         })  # fmt: skip
     return {
@@ -211,12 +220,19 @@ PHYSICS_KEYS = ("physics", "settle", "protocol")
 reuses every batch."""
 
 
-POINT_KEYS = (("physics", "period_s"), ("protocol", "startup"))
+POINT_KEYS = (("physics", "period_s"), ("protocol", "startup"), ("physics", "friction"))
 """Keys that may hold a list: each entry makes its own parameter point (``drum.design``)."""
 
 
-_NOT_SEEDED = (("physics", "max_overlap"),)
-"""Keys that never change a trajectory (a bad-state bound), left out of the seed."""
+_NOT_SEEDED = (
+    ("physics", "max_overlap"),
+    ("physics", "friction"),
+    ("physics", "k_t"),
+)
+"""Keys left out of the seed: the bad-state bound (it never changes a trajectory), and the
+friction law, so that replica k of a static-friction point starts from the same placement
+and tangent vector as replica k of its viscous twin (paired replicas: the difference
+between the laws is measured on common random numbers)."""
 
 
 def _fill_defaults(instance, schema, root):
@@ -376,6 +392,12 @@ def check(section: Mapping) -> dict:
                 f"config key 'drum.fits.{key}' = {[lo, hi]} reaches beyond the recorded "
                 f"window 'drum.protocol.{window}' = {pr[window]} s"
             )
+    ph = sec["physics"]
+    if ph["k_t"] is not None and "static" not in _values(sec, ("physics", "friction")):
+        raise ConfigError(
+            f"config key 'drum.physics.k_t' = {ph['k_t']} is set, but no point has "
+            "'drum.physics.friction' static: it would change nothing"
+        )
     st = sec["settle"]
     if st["min_time_s"] > st["max_time_s"]:
         raise ConfigError(
@@ -465,6 +487,18 @@ def _point_part(key: str, value) -> str:
     return f"{key}={value}"
 
 
+def trajectory_keys(point: Mapping) -> dict:
+    """The sub-sections of one point that shape its trajectories (a plain copy): physics
+    (without ``k_t`` under viscous friction, where it plays no part), protocol, and
+    settle for the ``settled`` start-up only."""
+    sec = load(point)
+    keys = [k for k in PHYSICS_KEYS if k != "settle" or sec["protocol"]["startup"] == "settled"]
+    out = {k: thaw(sec[k]) for k in keys}
+    if out["physics"]["friction"] != "static":
+        out["physics"].pop("k_t", None)
+    return out
+
+
 def seed_physics(section: Mapping) -> dict:
     """The subset of a point's section that defines a replica: physics, protocol, and
     settle for the ``settled`` start-up (the bad-state bound left out).
@@ -474,8 +508,9 @@ def seed_physics(section: Mapping) -> dict:
     """
     sec = load(section)
     omega(sec["physics"])  # one point only
-    keys = [k for k in PHYSICS_KEYS if k != "settle" or sec["protocol"]["startup"] == "settled"]
-    out = {k: thaw(sec[k]) for k in keys}
+    if isinstance(sec["physics"]["friction"], list | tuple):
+        raise ValueError("seed_physics needs one point's section (points)")
+    out = trajectory_keys(sec)
     for a, b in _NOT_SEEDED:
         out[a].pop(b, None)
     return out

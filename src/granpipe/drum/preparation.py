@@ -119,6 +119,12 @@ class Start:
         Duration of the fall (and settling) before this state.
     n_steps : int; wall_time : float [s]
         Cost of preparing it.
+    spins : (N,) float64 [rad/t0] or None
+        Static friction only: the mobile disks' angular velocities.
+    shear : ((K, 2) int64, (K,) float64 [d_s]) or None
+        Static friction only: the stretched tangential springs, as disk pairs (wall disks
+        numbered after the N mobile ones) and their shear history
+        (:meth:`granpipe.engine.State.shear_history`).
     """
 
     positions: np.ndarray
@@ -128,6 +134,8 @@ class Start:
     settle_time: float
     n_steps: int
     wall_time: float
+    spins: np.ndarray | None = None
+    shear: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def _placement(model: DrumModel, protocol: Mapping, rng) -> np.ndarray:
@@ -159,8 +167,7 @@ def fall(
         if on_chunk is not None:
             on_chunk(done, (done - st.pre_rotation) * st.dt_s)
     return Start(
-        positions=state.positions[: model.n_mobile].copy(),
-        velocities=state.velocities[: model.n_mobile].copy(),
+        **model.start_arrays(state),
         wall_angle=model.omega * n_fall * st.dt,
         settled=True,
         settle_time=n_fall * st.dt_s,
@@ -210,8 +217,7 @@ def settle(
                 settled = True
                 break
     return Start(
-        positions=state.positions[: model.n_mobile].copy(),
-        velocities=state.velocities[: model.n_mobile].copy(),
+        **model.start_arrays(state),
         wall_angle=0.0,
         settled=settled,
         settle_time=done * st.dt_s,

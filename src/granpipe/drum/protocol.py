@@ -69,7 +69,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from ..engine import DrumLaw, Simulation, WallDisks
+from ..engine import DrumLaw, Simulation, StaticFrictionLaw, WallDisks
 from ..errors import ConfigError, SimulationError
 from ..seeds import batch_replicas, replica_rng, replica_seed
 from .layout import filled, load, point_name, seed_physics, thaw
@@ -132,10 +132,21 @@ class DrumModel:
         """Angular speed of the drum's clockwise rotation [rad/t0]."""
         return omega(self.physics)
 
+    @property
+    def static(self) -> bool:
+        """Static friction (``physics.friction: static``): spins and shear histories."""
+        return self.physics["friction"] == "static"
+
     def simulation(self, omega_clockwise: float) -> Simulation:
-        """The engine with the drum turning clockwise at ``omega_clockwise`` [rad/t0]."""
+        """The engine with the drum turning clockwise at ``omega_clockwise`` [rad/t0],
+        under the point's friction law: the paper's Eq. (1) (viscous) or the
+        static-friction law (:class:`~granpipe.engine.StaticFrictionLaw`)."""
         ph = self.physics
-        law = DrumLaw(ph["k_n"], ph["gamma_n"], ph["gamma_t"], ph["mu"])
+        if self.static:
+            law = StaticFrictionLaw(ph["k_n"], ph["gamma_n"], ph["gamma_t"], ph["mu"],
+                                    k_t=ph["k_t"])  # fmt: skip
+        else:
+            law = DrumLaw(ph["k_n"], ph["gamma_n"], ph["gamma_t"], ph["mu"])
         # The engine counts angles counter-clockwise: clockwise rotation is omega < 0.
         walls = WallDisks(centre=(0.0, 0.0), omega=-float(omega_clockwise))
         return Simulation(
@@ -144,9 +155,11 @@ class DrumModel:
         )  # fmt: skip
 
     def new_state(self, sim: Simulation, positions, velocities, t: float = 0.0,
-                  wall_angle: float = 0.0):  # fmt: skip
+                  wall_angle: float = 0.0, spins=None, shear=None):  # fmt: skip
         """An engine state: mobile disks (N, 2) then the wall disks, the drum turned
-        clockwise by ``wall_angle`` [rad] from its position at placement."""
+        clockwise by ``wall_angle`` [rad] from its position at placement; under static
+        friction with the mobile disks' ``spins`` (N,) [rad/t0] (default at rest) and the
+        shear histories ``shear = (pairs, xi)`` of :meth:`Start.shear` (default none)."""
         n_w = self.geom.n_wall
         walls = wall_positions(self.geom, wall_angle) if wall_angle else self.walls0
         pos = np.concatenate([np.asarray(positions, np.float64), walls])
@@ -154,7 +167,30 @@ class DrumModel:
         radii = np.concatenate([self.diameters, np.full(n_w, self.geom.d_wall)]) / 2.0
         masses = np.concatenate([self.masses, np.ones(n_w)])
         is_wall = np.concatenate([np.zeros(self.n_mobile, bool), np.ones(n_w, bool)])
-        return sim.new_state(pos, radii, masses, velocities=vel, is_wall=is_wall, time=t)
+        spin = None
+        if self.static:
+            spin = np.zeros(len(pos))
+            if spins is not None:
+                spin[: self.n_mobile] = spins
+        state = sim.new_state(pos, radii, masses, velocities=vel, spins=spin, is_wall=is_wall,
+                              time=t)  # fmt: skip
+        if shear is not None and len(shear[1]):
+            sim.set_shear_history(state, *shear)
+        return state
+
+    def start_arrays(self, state) -> dict:
+        """What the init file keeps of an engine state to continue it: positions and
+        velocities of the mobile disks, and under static friction their spins and the
+        shear histories (:meth:`~granpipe.engine.State.shear_history`)."""
+        n = self.n_mobile
+        out = {
+            "positions": state.positions[:n].copy(),
+            "velocities": state.velocities[:n].copy(),
+        }
+        if self.static:
+            out["spins"] = state.spins[:n].copy()
+            out["shear"] = state.shear_history()
+        return out
 
     def rigid_speed(self, state, omega: float) -> float:
         """Ω sqrt(Σ_i |r_i|²): V of the mobile disks turning rigidly with the drum [d_s/t0]."""
@@ -264,7 +300,8 @@ def run_protocol(
     om = model.omega
     sim = model.simulation(om)
     state = model.new_state(sim, start.positions, start.velocities, t=-st.alignment * st.dt,
-                            wall_angle=start.wall_angle)  # fmt: skip
+                            wall_angle=start.wall_angle, spins=start.spins,
+                            shear=start.shear)  # fmt: skip
     n_w = model.geom.n_wall
     fraction = float(protocol["tangent_fraction"])
 
@@ -395,8 +432,38 @@ def _with_context(exc: SimulationError, section, replica, seed, stage):
     )
 
 
+def _shear_variables(starts: list[Start]) -> dict:
+    """Static friction: spins and shear histories of every replica, the contacts padded
+    to the longest list (pair ``(-1, -1)``, history 0)."""
+    k = max(len(p.shear[1]) for p in starts)
+    pairs = np.full((len(starts), k, 2), -1, np.int64)
+    xi = np.zeros((len(starts), k))
+    for r, p in enumerate(starts):
+        pairs[r, : len(p.shear[1])] = p.shear[0]
+        xi[r, : len(p.shear[1])] = p.shear[1]
+    return {
+        "spin": (
+            ("replica", "particle"),
+            np.stack([p.spins for p in starts]),
+            {"units": "rad/t0", "long_name": "mobile-disk spin at the end of the start-up"},
+        ),
+        "shear_pair": (
+            ("replica", "spring", "end"),
+            pairs,
+            {"units": "1", "long_name": "disks (i < j; wall disks after the mobile ones) of a "
+             "stretched tangential spring; -1 pads"},
+        ),
+        "shear_history": (
+            ("replica", "spring"),
+            xi,
+            {"units": "d_s", "long_name": "tangential spring's shear history (of i relative to j)"},
+        ),
+    }  # fmt: skip
+
+
 def _init_dataset(model: DrumModel, replicas, seeds, starts: list[Start]) -> xr.Dataset:
     r = ("replica",)
+    shear = _shear_variables(starts) if model.static else {}
     return xr.Dataset(
         {
             "position": (
@@ -449,6 +516,7 @@ def _init_dataset(model: DrumModel, replicas, seeds, starts: list[Start]) -> xr.
                 model.walls0,
                 {"units": "d_s", "long_name": "wall-disk centre at the placement"},
             ),
+            **shear,
         },  # fmt: skip
         coords={
             "replica": (
@@ -461,6 +529,7 @@ def _init_dataset(model: DrumModel, replicas, seeds, starts: list[Start]) -> xr.
             "n_mobile": model.n_mobile,
             "n_wall": model.geom.n_wall,
             "drum_radius": model.geom.radius,
+            "friction": model.physics["friction"],
         },  # fmt: skip
     )
 
@@ -508,7 +577,15 @@ def _expected_steps(st: Steps) -> int:
 
 
 def _start_of(init: xr.Dataset, k: int) -> Start:
+    spins = shear = None
+    if "spin" in init:
+        spins = init["spin"].values[k]
+        pairs = init["shear_pair"].values[k]
+        keep = pairs[:, 0] >= 0
+        shear = (pairs[keep], init["shear_history"].values[k][keep])
     return Start(
+        spins=spins,
+        shear=shear,
         positions=init["position"].values[k],
         velocities=init["velocity"].values[k],
         wall_angle=float(init["wall_angle"].values[k]),
@@ -536,6 +613,12 @@ def run_batch(section: Mapping, batch: int, init: xr.Dataset, *, threads: int = 
         raise ValueError(
             f"init file holds replicas {list(init['replica'].values)}, batch {batch} needs "
             f"{replicas}: was it made with another batch_size?"
+        )
+    made = init.attrs.get("friction", "viscous")
+    if made != sec["physics"]["friction"] or (model.static and "spin" not in init):
+        raise ValueError(
+            f"init file was made under {made} friction, this point has "
+            f"{sec['physics']['friction']} friction"
         )
     progress = Progress(len(replicas), _expected_steps(st), log)
     log(

@@ -291,6 +291,30 @@ class Ensemble:
         s = self._s["counters"][:, K.LOG2_SCALE].copy()
         return int(s[0]) if self._single else s
 
+    def shear_history(self):
+        """``(pairs, xi)``: the tangential springs of a state's disk pairs (laws with
+        history), to carry them to a new state (:meth:`Simulation.set_shear_history`).
+
+        Returns
+        -------
+        pairs : (K, 2) int64
+            Disk indices ``(i, j)``, ``i < j``, of the pairs whose spring is stretched
+            (wall disks included; histories against flat walls are not part of it).
+        xi : (K,) float64 [length]
+            Their tangential displacement, in the engine's sign convention (that of ``i``
+            relative to ``j``).
+        """
+        if not self._single:
+            raise ConfigError("shear_history is per replica: use ensemble[r].shear_history()")
+        s = self._s
+        npairs = int(s["counters"][0, K.N_PAIRS])
+        start = s["pair_start"][0]
+        xi = s["pair_xi"][0, :npairs]
+        k = np.flatnonzero(xi != 0.0)
+        i = np.searchsorted(start, k, side="right") - 1
+        j = s["pair_ij"][0, K.PJ, k].astype(np.int64)
+        return np.column_stack([i, j]).astype(np.int64), xi[k].copy()
+
     # -- observables --------------------------------------------------------------------
     def kinetic_energy(self):
         """Translational plus rotational kinetic energy of the mobile disks [energy]."""
@@ -755,6 +779,45 @@ class Simulation:
         """
         skin = self._check(state)
         self._refresh_kernel(state, bool(state._s["has_tangent"]), True, skin)
+        self._raise(state)
+
+    def set_shear_history(self, state, pairs, xi) -> None:
+        """Give the pairs ``pairs`` of a :class:`State` the shear histories ``xi`` (what
+        :meth:`State.shear_history` returned for the same disks) and re-evaluate the
+        forces, so that a state rebuilt from positions, velocities, spins and histories
+        continues as the saved one would. Every other pair's history is set to zero.
+
+        Raises
+        ------
+        ConfigError
+            if the law has no history, or a pair is not within contact range (its
+            disks are farther apart than the sum of their radii plus the skin).
+        """
+        if not self.law.has_history:
+            raise ConfigError(f"the {self.law.name} law has no shear history")
+        if not state._single:
+            raise ConfigError("set_shear_history takes one State (ensemble[r])")
+        pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+        xi = np.asarray(xi, np.float64).reshape(-1)
+        if len(pairs) != len(xi):
+            raise ConfigError(f"{len(pairs)} pairs but {len(xi)} histories")
+        skin = self._check(state)
+        self._refresh_kernel(state, bool(state._s["has_tangent"]), True, skin)
+        self._raise(state)
+        s = state._s
+        start = s["pair_start"][0]
+        pj = s["pair_ij"][0, K.PJ]
+        n = state.n
+        s["pair_xi"][0, :] = 0.0
+        for (i, j), x in zip(pairs, xi, strict=True):
+            if not (0 <= i < j < n):
+                raise ConfigError(f"pair ({i}, {j}) is not (i, j) with 0 <= i < j < {n}")
+            row = pj[start[i] : start[i + 1]]
+            k = int(np.searchsorted(row, j))
+            if k == len(row) or row[k] != j:
+                raise ConfigError(f"pair ({i}, {j}) is not within contact range")
+            s["pair_xi"][0, start[i] + k] = x
+        self._refresh_kernel(state, bool(state._s["has_tangent"]), False, skin)
         self._raise(state)
 
     def set_tangent(self, state, dr, dv, dspin=None) -> None:
