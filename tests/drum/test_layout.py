@@ -16,6 +16,8 @@ def test_seed_subset_excludes_sample_sizes_and_analysis():
     assert seed_physics({"settle": {"max_speed": 3.0}, "physics": {"max_overlap": 0.9}}) == a
     c = seed_physics({"protocol": {"block_s": 0.008}})
     assert c != a
+    # the friction law is not seeded: replica k of both laws starts alike (paired)
+    assert seed_physics({"physics": {"friction": "static", "k_t": 100.0}}) == a
     settled = seed_physics({"protocol": {"startup": "settled"}})
     assert set(settled) == {"physics", "settle", "protocol"}
     assert seed_physics({"protocol": {"startup": "settled"}, "settle": {"max_speed": 3}}) != settled
@@ -32,31 +34,43 @@ def test_bad_windows_and_keys_name_the_key():
 
 def test_layout_batches_and_files():
     sec = {"ensemble": {"n_replicas": 5, "batch_size": 2}}
-    assert layout.point_name(sec) == "N=736,period=900s,startup=paper"
+    assert layout.point_name(sec) == "N=736,period=900s,startup=paper,friction=viscous"
     assert layout.batch_ids(sec) == ["0000", "0001", "0002"]  # whole batches: 6 replicas
     files = layout.run_files(sec)
-    assert files[0] == "runs/N=736,period=900s,startup=paper/batch_0000.nc" and len(files) == 3
+    name = "N=736,period=900s,startup=paper,friction=viscous"
+    assert files[0] == f"runs/{name}/batch_0000.nc" and len(files) == 3
     assert layout.init_files(sec)[2].startswith("init/")
     grown = layout.run_files({"ensemble": {"n_replicas": 9, "batch_size": 2}})
     assert grown[:3] == files  # a larger ensemble only appends batches
-    assert len(layout.figure_files()) == 12
+    assert len(layout.figure_files()) == 14  # Figs. 2-8, PNG and PDF
 
 
 def test_points_vary_one_key_at_a_time_from_the_reference():
-    sec = {"physics": {"period_s": [900.0, 450.0, 225.0]},
+    sec = {"physics": {"period_s": [900.0, 450.0, 225.0], "friction": ["viscous", "static"]},
            "protocol": {"startup": ["paper", "settled"]}}  # fmt: skip
     pts = points(sec)
-    got = [(p["physics"]["period_s"], p["protocol"]["startup"]) for p in pts]
-    assert got == [(900.0, "paper"), (450.0, "paper"), (225.0, "paper"), (900.0, "settled")]
+    got = [(p["physics"]["period_s"], p["protocol"]["startup"], p["physics"]["friction"])
+           for p in pts]  # fmt: skip
+    assert got == [
+        (900.0, "paper", "viscous"), (450.0, "paper", "viscous"), (225.0, "paper", "viscous"),
+        (900.0, "settled", "viscous"), (900.0, "paper", "static"),
+    ]  # fmt: skip
     assert [point_label(p, sec) for p in pts] == [
-        "", "[period=450s]", "[period=225s]", "[startup=settled]"
+        "", "[period=450s]", "[period=225s]", "[startup=settled]", "[friction=static]"
     ]  # fmt: skip
     prod = points({**sec, "design": "product"})
-    assert len(prod) == 6 and len({layout.point_name(p) for p in prod}) == 6
+    assert len(prod) == 12 and len({layout.point_name(p) for p in prod}) == 12
     # a point's simulation subset does not depend on the other entries of the lists
     alone = layout.rule_params({"physics": {"period_s": 450.0}})["sim"]
     listed = layout.rule_params(sec)["sim"]
-    assert alone["N=736,period=450s,startup=paper"] == listed["N=736,period=450s,startup=paper"]
+    name = "N=736,period=450s,startup=paper,friction=viscous"
+    assert alone[name] == listed[name]
+    # k_t shapes the static point only, and is refused where no point uses it
+    stiff = layout.rule_params({**sec, "physics": {**sec["physics"], "k_t": 100.0}})["sim"]
+    static = "N=736,period=900s,startup=paper,friction=static"
+    assert stiff[name] == listed[name] and stiff[static] != listed[static]
+    with pytest.raises(ConfigError, match="k_t"):
+        layout.check({"physics": {"k_t": 100.0}})
     with pytest.raises(ConfigError, match="period_s"):
         filled({"physics": {"period_s": [900.0, -1.0]}})
 

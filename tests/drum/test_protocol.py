@@ -10,7 +10,7 @@ import xarray as xr
 
 from granpipe.drum.layout import seed_physics
 from granpipe.drum.model import omega
-from granpipe.drum.protocol import DrumModel, run_replica, steps, tiny_section
+from granpipe.drum.protocol import DrumModel, run_batch, run_replica, steps, tiny_section
 from granpipe.drum.stages import init_stage, runs_stage
 from granpipe.errors import SimulationError
 from granpipe.io import config_from_attrs, read_dataset
@@ -161,3 +161,40 @@ def test_the_drum_has_turned_exactly_one_degree_at_t0(tmp_path):
     # the init file ends the fall tangent_alignment_s before t = 0
     fell = float(init["settle_time"].values[0])
     assert fell == pytest.approx(2.5 - sec["protocol"]["tangent_alignment_s"], abs=st.block_s)
+
+
+@pytest.fixture(scope="module")
+def static_batch(tiny, tmp_path_factory):
+    """Replica 0 of the tiny drum under static friction, through the stages."""
+    sec = {**tiny, "physics": {**tiny["physics"], "friction": "static"},
+           "ensemble": {**tiny["ensemble"], "batch_size": 1}}  # fmt: skip
+    return sec, _stages(sec, tmp_path_factory.mktemp("static"), 0, threads=1)
+
+
+def test_static_friction_init_file_carries_spins_and_springs_to_the_runs(static_batch):
+    """The init file holds spins and stretched springs; the runs stage continues from
+    them exactly as a replica run by hand in one process (no file between)."""
+    sec, (init, run) = static_batch
+    assert init.attrs["friction"] == "static"
+    spin = init["spin"].values[0]
+    pairs = init["shear_pair"].values[0]
+    xi = init["shear_history"].values[0][pairs[:, 0] >= 0]
+    assert np.abs(spin).max() > 0 and len(xi) > 10 and np.all(xi != 0)
+    assert np.all(pairs[pairs[:, 0] >= 0, 0] < pairs[pairs[:, 0] >= 0, 1])
+    ds = run_replica(sec, 0, snapshots=False)
+    for name in ("lambda_onset", "speed_onset", "lambda_decay", "speed_decay"):
+        np.testing.assert_array_equal(ds[name].values[0], run[name].sel(replica=0).values)
+
+
+def test_static_friction_replicas_pair_with_the_viscous_ones(tiny, batch2, static_batch):
+    """Replica k of both laws has one seed (common random numbers), and a runs stage
+    refuses an init file made under the other law."""
+    sec, (init, _) = static_batch
+    viscous_init, _ = batch2
+    assert int(init["seed"].values[0]) == int(viscous_init["seed"].sel(replica=0).values)
+    assert seed_physics(sec) == seed_physics(tiny)
+    with pytest.raises(ValueError, match="made under viscous friction"):
+        run_batch(sec, 0, viscous_init.isel(replica=[0]))
+    viscous_one = {**tiny, "ensemble": {**tiny["ensemble"], "batch_size": 1}}
+    with pytest.raises(ValueError, match="made under static friction"):
+        run_batch(viscous_one, 0, init)

@@ -31,9 +31,11 @@ TINY_FITS = {
 
 @pytest.fixture(scope="module")
 def pipeline(tiny, tmp_path_factory):
-    """Both start-ups of the tiny drum, three batches of one, through every stage."""
+    """Both start-ups and both friction laws of the tiny drum (three points), three
+    batches of one, through every stage."""
     tmp = tmp_path_factory.mktemp("pipe")
     sec = {**tiny, "protocol": {**tiny["protocol"], "startup": ["paper", "settled"]},
+           "physics": {**tiny["physics"], "friction": ["viscous", "static"]},
            "ensemble": {**tiny["ensemble"], "batch_size": 1, "n_replicas": 3,
                         "exclude_flagged": False},
            "fits": {**tiny["fits"], **TINY_FITS}}  # fmt: skip
@@ -77,7 +79,8 @@ def test_summary_rows_have_the_design_columns(pipeline):
     for q in ("onset_time", "onset_sign_change_time", "onset_lag", "decay_sign_change_time",
               "decay_lag", "onset_time_auto", "decay_lag_auto"):  # fmt: skip
         assert q in names
-        assert q + "[startup=settled]" in names  # the second point's rows, labelled
+        assert q + "[startup=settled]" in names  # the other points' rows, labelled
+        assert q + "[friction=static]" in names
     rows = table.set_index("quantity")
     row = rows.loc["onset_time_auto"]
     assert row["paper_value"] == 2.628 and row["unit"] == "s" and row["n"] == 3

@@ -143,7 +143,7 @@ rule drum_summary:
 
 
 rule drum_figures:
-    """Figs. 2-5 of the paper for the reference point, and Figs. 6-7 across points."""
+    """Figs. 2-5 of the paper for the reference point, and Figs. 6-8 across points."""
     input:
         ensembles=[out("drum", drum_layout.ensemble_file(p)) for p in DRUM_POINTS],
         fits=[out("drum", drum_layout.fits_file(p)) for p in DRUM_POINTS],
@@ -180,6 +180,11 @@ rule drum_figures:
             out("drum", "figures", "fig7_lag_vs_rotation.png"),
             category="drum",
             caption="../report/drum_fig7.rst",
+        ),
+        fig8=report(
+            out("drum", "figures", "fig8_friction.png"),
+            category="drum",
+            caption="../report/drum_fig8.rst",
         ),
         pdf=[out("drum", f) for f in drum_layout.figure_files(("pdf",))],
     params:

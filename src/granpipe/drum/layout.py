@@ -79,8 +79,10 @@ FIGURES = {
 COMPARISON_FIGURES = {
     6: "startup",
     7: "lag_vs_rotation",
+    8: "friction",
 }
-"""Figures across points: V and λ̄ of each start-up; the lags against the drum's Ω."""
+"""Figures across points: V and λ̄ of each start-up; the lags against the drum's Ω; V and
+λ̄ of each friction law."""
 
 
 POINT_PATTERN = "N={drum_n},period={drum_period}s,startup={drum_startup},friction={drum_friction}"

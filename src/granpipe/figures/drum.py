@@ -201,35 +201,34 @@ def fig5_lambda_vs_speed(ens: xr.Dataset, fits: xr.Dataset) -> plt.Figure:
     return fig
 
 
+_POINT_KEYS = ("period_s", "startup", "friction")
+"""The keys that make a parameter point (``granpipe.drum.layout.POINT_KEYS``)."""
+
+
 def _same(points: dict, key: str) -> dict:
-    """The points that share the reference point's value of every key but ``key``."""
+    """The points that share the reference point's value of every point key but ``key``."""
     items = list(points.items())
     ref = items[0][1]
-    other = {"period_s": "startup", "startup": "period_s"}[key]
-    return {n: p for n, p in items if p[other] == ref[other]}
+    others = [k for k in _POINT_KEYS if k != key]
+    return {n: p for n, p in items if all(p.get(k) == ref.get(k) for k in others)}
 
 
-def fig6_startup(points: dict) -> plt.Figure:
-    """V(t) and λ̄(t) of the onset and decay windows for each start-up at the reference
-    period: the paper's (disks fall in the turning drum) and the settled pile.
-
-    ``points``: ``{name: {"period_s", "startup", "label", "ensemble", "fits"}}``, the
-    reference point first (:func:`granpipe.drum.stages.figures_stage`).
-    """
+def _compare(points: dict, key: str, colors: dict, title: str) -> plt.Figure:
+    """V(t) and λ̄(t) of the onset and decay windows of the points that differ from the
+    reference point in ``key`` only (one curve per value of ``key``)."""
     from ..analysis.smoothing import moving_average
 
-    chosen = _same(points, "startup")
+    chosen = _same(points, key)
     fig, axes = plt.subplots(2, 2, figsize=(10.0, 6.4), layout="constrained", sharex="col")
-    colors = {"paper": "tab:red", "settled": "tab:gray"}
     for p in chosen.values():
         ens, fit, lab = p["ensemble"], p["fits"], p["label"]
         q = int(fit.attrs.get("moving_average_q", 0))
         n = int(ens.attrs.get("n_replicas", 0))
-        c = colors.get(p["startup"], None)
+        c = colors.get(p[key], None)
         for j, w in enumerate(("onset", "decay")):
             t = ens[f"seconds_{w}"].values
             V = moving_average(ens[f"speed_{w}_mean"].values, max(1, q // 5))
-            axes[0, j].plot(t, V, "-", color=c, lw=1.2, label=f"{p['startup']} ({n} replicas)")
+            axes[0, j].plot(t, V, "-", color=c, lw=1.2, label=f"{p[key]} ({n} replicas)")
             axes[1, j].plot(t, fit[f"lambda_bar_{w}"].values, "-", color=c, lw=1.5)
             if w == "onset":
                 t_on = _value(fit, f"onset_time_auto{lab}")
@@ -241,10 +240,29 @@ def fig6_startup(points: dict) -> plt.Figure:
         axes[1, j].set_ylabel("λ̄ [1/t0]")
         axes[1, j].axhline(0.0, color="0.5", lw=0.6)
         axes[1, j].set_xlabel(f"t [s], {w} window")
-    axes[0, 0].legend(title="start-up", fontsize=8)
+    axes[0, 0].legend(title=title, fontsize=8)
     axes[0, 0].set_title("onset window (dotted: automatic onset time)", fontsize=9)
     axes[0, 1].set_title("decay window (drum stopped at 5 s)", fontsize=9)
     return fig
+
+
+def fig6_startup(points: dict) -> plt.Figure:
+    """V(t) and λ̄(t) of the onset and decay windows for each start-up at the reference
+    period and friction law: the paper's (disks fall in the turning drum) and the
+    settled pile.
+
+    ``points``: ``{name: {"period_s", "startup", "friction", "label", "ensemble",
+    "fits"}}``, the reference point first (:func:`granpipe.drum.stages.figures_stage`).
+    """
+    return _compare(points, "startup", {"paper": "tab:red", "settled": "tab:gray"}, "start-up")
+
+
+def fig8_friction(points: dict) -> plt.Figure:
+    """V(t) and λ̄(t) of the onset and decay windows for each friction law at the
+    reference period and start-up: the paper's Eq. (1) (viscous) and static friction
+    (docs/drum.md, "Static friction"). Arguments as :func:`fig6_startup`."""
+    return _compare(points, "friction", {"viscous": "tab:red", "static": "tab:green"},
+                    "friction")  # fmt: skip
 
 
 def fig7_lag_vs_rotation(points: dict, undetermined_width: float = 20.0) -> plt.Figure:
