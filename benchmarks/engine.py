@@ -37,6 +37,7 @@ import importlib
 import json
 import math
 import os
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -49,6 +50,9 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import numba
 import numpy as np
+
+# the systems are built with the tests' geometry helpers (tests/engine/geometry.py)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from granpipe.engine import BoxLaw, DrumLaw, StaticFrictionLaw
 
@@ -65,10 +69,11 @@ CACHE = Path(tempfile.gettempdir())
 
 
 def _api(pkg):
-    """The engine and geometry modules of package ``pkg``: ``granpipe``, or an older
-    revision's renamed copy (``benchmarks/engine_ab.py``) built from the same states."""
+    """The engine of package ``pkg`` (``granpipe``, or an older revision's renamed copy,
+    ``benchmarks/engine_ab.py``) and the tests' geometry helpers, so that every revision
+    is timed on the same states."""
     return importlib.import_module(f"{pkg}.engine"), importlib.import_module(
-        f"{pkg}.engine.geometry"
+        "tests.engine.geometry"
     )
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from granpipe.engine import DrumLaw, Simulation, WallDisks
-from granpipe.engine.geometry import random_disks_in_circle, ring_of_disks
+from tests.engine.geometry import random_disks_in_circle, ring_of_disks
 
 DRUM_LAW = DrumLaw(k_n=565.97, gamma_n=8.7308, gamma_t=6.8927, mu=0.44)
 DT_DRUM = 1.14368e-3

@@ -316,3 +316,19 @@ def test_bad_coefficients_flat_walls_and_a_drum_law_state_are_refused():
     st = sim_d.new_state(np.zeros((1, 2)), [0.5], [1.0])
     with pytest.raises(ConfigError, match="different contact law"):
         Simulation(law, dt=1e-3).run(st, 1)
+
+
+def test_profiling_the_generic_passes_leaves_the_state_where_it_was(piles):
+    """``Simulation.profile_passes`` times every generic pass on a copy of the state:
+    the state itself then runs bit for bit as an untouched copy does."""
+    sim, pile = piles["static_friction"]
+    state, twin = pile.copy(), pile.copy()
+    t = sim.profile_passes(state, repeats=1, nrep=3)
+    assert t["n_pairs"] == int(np.ravel(state.neighbour_stats()["pairs"])[0])
+    assert t["n_particles"] == state.n
+    names = {"pairs.forward", "pairs.tangent", "kicks.forward", "kicks.tangent", "rebuild"}
+    assert names <= set(t) and all(t[k] > 0 for k in names)
+    for st in (state, twin):
+        sim.run(st, 200)
+    np.testing.assert_array_equal(state.positions, twin.positions)
+    np.testing.assert_array_equal(state.shear_history()[1], twin.shear_history()[1])

@@ -5,8 +5,8 @@ import pytest
 
 from granpipe.engine import BoxLaw, FlatWalls, Simulation, WallDisks
 from granpipe.engine import kernels as K
-from granpipe.engine.geometry import random_disks_in_circle, ring_of_disks
 from tests.engine.conftest import DRUM_LAW, DT_DRUM
+from tests.engine.geometry import random_disks_in_circle, ring_of_disks
 from tests.engine.reference import all_pair_forces
 
 BOX_LAW = BoxLaw(kappa_n=1e6, kappa_t=1e4, gamma_n=100.0, gamma_t=100.0, mu=0.6, mu_side=0.2)

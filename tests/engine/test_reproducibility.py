@@ -5,9 +5,9 @@ import pytest
 
 from granpipe.engine import BoxLaw, Ensemble, FlatWalls, Simulation, State, WallDisks
 from granpipe.engine import kernels as K
-from granpipe.engine.geometry import random_disks_in_box
 from granpipe.errors import SimulationError
 from tests.engine.conftest import DRUM_LAW, DT_DRUM, small_drum
+from tests.engine.geometry import random_disks_in_box
 
 BOX_LAW = BoxLaw(kappa_n=1e6, kappa_t=1e4, gamma_n=100.0, gamma_t=100.0, mu=0.6)
 DT_BOX = BOX_LAW.contact_time(0.5) / 50

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from granpipe.engine import BoxLaw, FlatWalls, Simulation, WallDisks
-from granpipe.engine.geometry import ring_of_disks
 from tests.engine.conftest import DRUM_LAW, DT_DRUM
+from tests.engine.geometry import ring_of_disks
 
 BOX_LAW = BoxLaw(kappa_n=1e6, kappa_t=1e4, gamma_n=100.0, gamma_t=100.0, mu=0.6)
 

@@ -46,9 +46,6 @@ parallel=True, max_overlap=0.5, passes="law")``
     a run needs to continue bit-identically (netCDF- or ``np.savez``-ready).
     ``Ensemble.stack(states)``, ``ens[r]`` (a State sharing memory). Arrays of an
     ensemble are ``(R, N, ...)``.
-``granpipe.engine.geometry``
-    ``ring_of_disks(n, diameter)`` (the drum wall), ``random_disks_in_circle``,
-    ``random_disks_in_box``, ``hexagonal_rows`` (the box crystal).
 ``Record``
     ``time (B,)``, ``global_speed``, ``local_lyapunov``, ``lyapunov_count`` (``(B,)`` or
     ``(R, B)``): exact block means over ``stride`` steps.
@@ -92,7 +89,8 @@ Two disks on a collision course, then the drum of docs/drum.md in miniature::
 
     import numpy as np
     from granpipe.engine import DrumLaw, Simulation, WallDisks
-    from granpipe.engine.geometry import ring_of_disks, random_disks_in_circle
+    from granpipe.drum.model import PAPER_PHYSICS, geometry, wall_positions
+    from granpipe.drum.preparation import random_placement
 
     law = DrumLaw(k_n=565.97, gamma_n=8.7308, gamma_t=6.8927, mu=0.44)
     sim = Simulation(law, dt=1.14368e-3, gravity=(0.0, 0.0))
@@ -101,16 +99,17 @@ Two disks on a collision course, then the drum of docs/drum.md in miniature::
     sim.run(state, 200)
     state.velocities          # [[-0.43, 0], [0.43, 0]]: e = law.restitution(0.5) = 0.43
 
-    ring, radius = ring_of_disks(150, 1.3846)              # circumradius 33.057
+    drum = geometry(PAPER_PHYSICS)                          # circumradius 33.057
+    ring = wall_positions(drum)                             # 150 touching wall disks
     diam = np.where(np.arange(736) % 2 == 0, 1.0, 1.1667)
     rng = np.random.default_rng(0)
-    # start low: disks dropped from the top hit the pile hard enough to overlap > a/2
-    inner = random_disks_in_circle(rng, diam / 2, radius - 0.6923, y_max=0.0)
+    inner = random_placement(diam, drum.inner_radius, rng)
     pos = np.vstack([inner, ring])
     radii = np.r_[diam / 2, np.full(150, 0.6923)]
     masses = np.r_[diam**2, np.ones(150)]
     is_wall = np.arange(886) >= 736
-    sim = Simulation(law, dt=1.14368e-3, wall_disks=WallDisks(omega=0.0))
+    # disks falling from the top overlap the pile by up to 0.6 of a radius: a bound of 1
+    sim = Simulation(law, dt=1.14368e-3, wall_disks=WallDisks(omega=0.0), max_overlap=1.0)
     state = sim.new_state(pos, radii, masses, is_wall=is_wall)
     for _ in range(100):                                    # settle at rest
         sim.run(state, 5_000)

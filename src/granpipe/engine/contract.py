@@ -217,7 +217,8 @@ class Kernels(NamedTuple):
     ``set_tangent(law, g, wd, fw, skin, st, dt, info)`` evaluates the perturbations of a
     tangent vector just written into the state, leaving the forward state as it was.
     ``flat_walls`` and ``tangent`` say whether the passes handle flat walls and tangent
-    dynamics.
+    dynamics. ``profile(sim, state, repeats, nrep)`` times each pass on its own
+    (:mod:`granpipe.engine.profile`; ``None``: the law offers no profile).
     """
 
     run_serial: object
@@ -226,6 +227,19 @@ class Kernels(NamedTuple):
     set_tangent: object
     flat_walls: bool
     tangent: bool
+    profile: object = None
+
+
+def profile_hook(name: str):
+    """``Kernels.profile`` for the function ``name`` of :mod:`granpipe.engine.profile`
+    (imported when called: the profile module imports the passes)."""
+
+    def profile(sim, state, repeats, nrep):
+        from granpipe.engine import profile as P
+
+        return getattr(P, name)(sim, state, repeats, nrep)
+
+    return profile
 
 
 class ContactLaw:

@@ -44,7 +44,7 @@ import numpy as np
 from numba import prange as numba_prange
 
 from granpipe._jit import njit, pnjit
-from granpipe.engine.contract import Kernels, pair_force, pair_force_jvp
+from granpipe.engine.contract import Kernels, pair_force, pair_force_jvp, profile_hook
 from granpipe.engine.kernels import (
     _BIG,
     _LAM_N,
@@ -663,4 +663,7 @@ def evaluate_pair_jvp(
     )  # fmt: skip
 
 
-GENERIC_KERNELS = Kernels(run_serial, run_parallel, refresh_serial, set_tangent_serial, False, True)
+GENERIC_KERNELS = Kernels(
+    run_serial, run_parallel, refresh_serial, set_tangent_serial, False, True,
+    profile_hook("generic_passes"),
+)  # fmt: skip

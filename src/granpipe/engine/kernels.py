@@ -511,7 +511,7 @@ def _tangent_done(vec, sca, num, total, info, step, counters):
 def _gather(vec, sca, pair_ij, buf, npairs, mode):
     """Relative positions and velocities of every listed pair into contiguous rows.
 
-    ``mode`` 1 adds the tangent-vector differences (drum tangent), 2 the two spins (box).
+    ``mode`` 2 adds the two spins (box).
     Four pairs at a time from the flat position and velocity rows, the lanes stored as
     row vectors (:func:`granpipe.engine.simd.gather4`; bit-identical to the scalar
     subtraction).
@@ -537,13 +537,6 @@ def _gather(vec, sca, pair_ij, buf, npairs, mode):
         gather4(p, v, pi, pj, k, 4, rows, cap, B_DX * cap)
     if m4 < npairs:
         gather4_tail(p, v, pi, pj, m4, npairs - m4, rows, cap, B_DX * cap)
-    if mode == 1:
-        tp = _flat(vec[T_POS])
-        tv = _flat(vec[T_VEL])
-        for k in range(0, m4, 4):
-            gather4(tp, tv, pi, pj, k, 4, rows, cap, B_E0 * cap)
-        if m4 < npairs:
-            gather4_tail(tp, tv, pi, pj, m4, npairs - m4, rows, cap, B_E0 * cap)
 
 
 @njit
@@ -708,9 +701,9 @@ def _box_pairs(buf, ssum, slim, smeff, sdiff, pair_xi, touch, law, dt_hist, npai
 
 
 @njit
-def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, recount):
-    """Add the pair forces (and perturbations, torques) to the disks; with ``recount``, count
-    each disk's touching pairs into ``PAIR_CONTACTS``.
+def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, torques, recount):
+    """Add the pair forces (and torques) to the disks; with ``recount``, count each disk's
+    touching pairs into ``PAIR_CONTACTS``.
 
     One flat pass over the half list (no short inner loops whose exits mispredict): the
     partner's sums go to memory pair by pair, the owner's stay in registers until its row
@@ -731,11 +724,7 @@ def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, 
     g1 = buf[B_G1]
     two = np.uint32(2)
     one = np.uint32(1)
-    tf = _flat(vec[T_FRC])
     trq = sca[TORQUE]
-    if tangent:
-        for k in range(tf.shape[0]):
-            tf[k] = 0.0
     if torques:
         for i in range(n):
             trq[i] = 0.0
@@ -744,38 +733,7 @@ def _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, tangent, torques, 
         ax = 0.0
         ay = 0.0
         bx = 0.0
-        by = 0.0
-        if tangent:
-            for k in range(npairs):
-                i = pi[k]
-                j2 = two * pj[k]
-                a = fx[k]
-                b = fy[k]
-                c = g0[k]
-                d = g1[k]
-                f[j2] -= a
-                f[j2 + one] -= b
-                tf[j2] -= c
-                tf[j2 + one] -= d
-                if i != prev:
-                    p2 = two * prev
-                    f[p2] += ax
-                    f[p2 + one] += ay
-                    tf[p2] += bx
-                    tf[p2 + one] += by
-                    ax = 0.0
-                    ay = 0.0
-                    bx = 0.0
-                    by = 0.0
-                ax += a
-                ay += b
-                bx += c
-                by += d
-                prev = i
-            p2 = two * prev
-            tf[p2] += bx
-            tf[p2 + one] += by
-        elif torques:
+        if torques:
             for k in range(npairs):
                 i = pi[k]
                 j = pj[k]
@@ -1438,7 +1396,7 @@ def _drum_forces(
     if compact:
         _scatter_compact(vec, sca, ivec, pair_ij, buf, buf[B_XI], m, tangent, False, recount)
     elif not tangent:
-        _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, False, False, recount)
+        _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, False, recount)
     elif recount:
         _recount(ivec, pair_ij, touch, m)
     _contact_counts_done(ivec, counters, count, recount or kept, compact)
@@ -1503,7 +1461,7 @@ def _box_forces(
     if compact:
         _scatter_compact(vec, sca, ivec, pair_ij, buf, pair_xi, m, False, True, count)
     else:
-        _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, False, True, count)
+        _scatter(vec, sca, ivec, pair_start, pair_ij, buf, touch, True, count)
     _contact_counts_done(ivec, counters, count, count, compact)
     counters[LAST_PAIR_CONTACTS] = ncon
     if _has_flat(fw):
@@ -2033,7 +1991,7 @@ def _no_tangent(*args):
 
 def drum_kernels():
     """The drum law's own passes (four-lane fused pair pass with the tangent vector)."""
-    from granpipe.engine.contract import Kernels
+    from granpipe.engine.contract import Kernels, profile_hook
 
     return Kernels(
         _drum_run(drum_run_serial),
@@ -2042,12 +2000,13 @@ def drum_kernels():
         _drum_set_tangent,
         True,
         True,
+        profile_hook("drum_passes"),
     )
 
 
 def box_kernels():
     """The box law's own passes (shear history, flat walls; no tangent dynamics)."""
-    from granpipe.engine.contract import Kernels
+    from granpipe.engine.contract import Kernels, profile_hook
 
     return Kernels(
         _box_run(box_run_serial),
@@ -2056,4 +2015,5 @@ def box_kernels():
         _no_tangent,
         True,
         False,
+        profile_hook("box_passes"),
     )

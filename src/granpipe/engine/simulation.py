@@ -880,6 +880,22 @@ class Simulation:
             du[r, idx] = np.where(comps, rng.uniform(-1.0, 1.0, (idx.size, 4)), 0.0)
         self.set_tangent(state, du[..., :2], du[..., 2:])
 
+    def profile_passes(self, state, *, repeats: int = 5, nrep: int = 2000) -> dict:
+        """Seconds per call of each pass of this simulation's step loop, timed on its own
+        on a copy of ``state`` (best of ``repeats`` jitted loops of ``nrep`` calls;
+        :mod:`granpipe.engine.profile`), with ``n_pairs`` and ``n_particles``; ``state``
+        itself is left as it was.
+        """
+        if not state._single:
+            raise ConfigError("profile_passes takes one State (ensemble[r])")
+        profile = self._kernels().profile
+        if profile is None:
+            raise ConfigError(
+                f"the {self.passes} passes of the {self.law.name} law have no profile"
+            )
+        self._check(state)
+        return profile(self, state.copy(), repeats, nrep)
+
     # -- running ------------------------------------------------------------------------
     def run(self, state, n_steps, *, stride=0, tangent=False) -> Record:
         """Advance ``state`` in place by ``n_steps`` steps.

@@ -1,6 +1,5 @@
-"""Small geometric builders: a ring of wall disks, random non-overlapping disks, a lattice.
-
-Generic shapes only; the studies choose sizes and counts (docs/drum.md, docs/box.md).
+"""Geometric builders of the engine tests and benchmarks: a ring of wall disks, random
+non-overlapping disks, a lattice (the studies place their own disks).
 """
 
 from __future__ import annotations
