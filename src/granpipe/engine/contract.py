@@ -39,9 +39,10 @@ import inspect
 import math
 from typing import ClassVar, NamedTuple
 
+import numba
 import numpy as np
 
-from granpipe._jit import njit
+from granpipe._jit import JIT_OPTIONS, njit
 from granpipe.errors import ConfigError
 
 __all__ = [
@@ -52,9 +53,24 @@ __all__ = [
     "law_leaf",
     "registered_laws",
     "checked_parameter",
+    "select",
 ]
 
 _REGISTRY: dict[str, type] = {}
+
+
+@numba.njit(inline="always", **JIT_OPTIONS)
+def select(c, a, x):
+    """``a if c else x`` with both sides evaluated: how a leaf writes a choice between
+    smooth pieces if it is to run on four lanes too.
+
+    The four-lane path (:func:`granpipe.engine.simd.lanes_of`) runs the same function
+    with ``select`` bound to a lane-wise select, so every lane gives the bits of the
+    scalar leaf. Inlined in the scalar kernels; the sides must be free of side effects
+    (they are arithmetic, and numba's numpy error model makes a division by zero an
+    ``inf``, not an exception).
+    """
+    return a if c else x
 
 
 def pair_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):

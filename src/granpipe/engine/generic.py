@@ -8,8 +8,8 @@ compiles them once per law (per parameter type). Plain loops, no vector intrinsi
 correctness first; a law that needs more speed opts into a path of its own
 (:meth:`granpipe.engine.contract.ContactLaw.kernels`).
 
-Storage: the engine's (:mod:`granpipe.engine.kernels` rows, :data:`granpipe.engine.
-simulation._STORAGE`), with the spin perturbation and its torque in the rows
+Storage: the engine's (:mod:`granpipe.engine.layout`: its rows and the ``STORAGE``
+tuple), with the spin perturbation and its torque in the rows
 ``T_SPIN``, ``T_TORQUE`` and the history's perturbation per listed pair in
 ``pair_dxi``. Contacts are between disks; wall disks (``is_wall``) move as prescribed
 and turn with the drum (their spin is the wall's angular velocity). Flat walls are not
@@ -53,6 +53,16 @@ from granpipe.engine.kernels import (
     _RENORM_HI,
     _RENORM_LO,
     _RENORM_MAX,
+    _advance_walls,
+    _at,
+    _block_means,
+    _fail,
+    _rebuild,
+    _set_gravity,
+    _time,
+    _update_wall_disks,
+)
+from granpipe.engine.layout import (
     CONTACT_SUM,
     CONTACTS,
     DEEP_OVERLAP,
@@ -90,14 +100,6 @@ from granpipe.engine.kernels import (
     THETA,
     TORQUE,
     VEL,
-    _advance_walls,
-    _at,
-    _block_means,
-    _fail,
-    _rebuild,
-    _set_gravity,
-    _time,
-    _update_wall_disks,
 )
 from granpipe.engine.neighbours import carry_history
 from granpipe.engine.walls import wall_omega

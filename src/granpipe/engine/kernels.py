@@ -57,6 +57,92 @@ from numba import prange as numba_prange
 
 from granpipe._jit import njit, pnjit
 from granpipe.engine.laws import box_force, box_wall_force, drum_force, drum_force_jvp
+from granpipe.engine.layout import (  # noqa: F401 (re-exported: kernels.POS etc.)
+    B_D,
+    B_DVX,
+    B_DVY,
+    B_DX,
+    B_DY,
+    B_E0,
+    B_E1,
+    B_E2,
+    B_E3,
+    B_FX,
+    B_FY,
+    B_G0,
+    B_G1,
+    B_L,
+    B_M,
+    B_S,
+    B_XI,
+    BOTTOM_WALL,
+    CELL_ITEMS,
+    CELL_OF,
+    CONTACT_SUM,
+    CONTACTS,
+    COUNT_STALE,
+    DEEP_OVERLAP,
+    FORCE_REBUILD,
+    FRC,
+    IM2,
+    INV_INERTIA,
+    INV_MASS,
+    IS_WALL,
+    LAST_OMEGA,
+    LAST_PAIR_CONTACTS,
+    LEFT_WALL,
+    LIST_OVERFLOW,
+    LOG2_SCALE,
+    MG,
+    MOB2,
+    N_PAIRS,
+    N_REBUILDS,
+    N_WALLS,
+    NB,
+    NCLOCK,
+    NCOUNT,
+    NEAR_WALLS,
+    NI,
+    NONFINITE,
+    NPC,
+    NS,
+    NV,
+    OK,
+    OVERLAP_FRAC,
+    P_DIFF,
+    P_LIM,
+    P_MEFF,
+    P_SUM,
+    PAIR_CONTACTS,
+    PI,
+    PJ,
+    PK,
+    POS,
+    POS_BUILD,
+    RADIUS,
+    RIGHT_WALL,
+    SPIN,
+    STEP,
+    STEPS_RUN,
+    T_FRC,
+    T_ORIGIN,
+    T_POS,
+    T_PREV,
+    T_SPIN,
+    T_TORQUE,
+    T_VEL,
+    TANGENT_NONFINITE,
+    THETA,
+    THETA_BUILD,
+    TORQUE,
+    VEL,
+    WALL_REF,
+    WALL_RMAX,
+    XI_BOTTOM,
+    XI_LEFT,
+    XI_RIGHT,
+    ZB_NEAR,
+)
 from granpipe.engine.neighbours import build_pairs, carry_history
 from granpipe.engine.simd import (
     BIG,
@@ -80,46 +166,6 @@ from granpipe.engine.simd import (
     touch_bits4,
 )
 from granpipe.engine.walls import bottom_height, bottom_velocity, wall_omega
-
-# rows of vec (NV, N, 2)
-POS, VEL, FRC, POS_BUILD, WALL_REF, T_POS, T_VEL, T_FRC, IM2, MOB2, MG = range(11)
-NV = 11
-# rows of sca (NS, N); T_SPIN, T_TORQUE: the tangent vector's spin and torque (generic
-# passes of laws with spin, granpipe.engine.generic)
-RADIUS, INV_MASS, INV_INERTIA, SPIN, TORQUE, T_PREV, XI_LEFT, XI_RIGHT, XI_BOTTOM = range(9)
-T_SPIN, T_TORQUE = 9, 10
-NS = 11
-# rows of ivec (NI, N)
-IS_WALL, CONTACTS, CELL_ITEMS, CELL_OF, PAIR_CONTACTS = range(5)
-NI = 5
-# rows of pair_c (NPC, P): a_i + a_j, overlap bound, m_eff, a_i - a_j
-P_SUM, P_LIM, P_MEFF, P_DIFF = range(4)
-NPC = 4
-# rows of the pair buffer (NB, P)
-B_DX, B_DY, B_DVX, B_DVY, B_E0, B_E1, B_E2, B_E3, B_FX, B_FY, B_G0, B_G1 = range(12)
-# rows of the pair constants and history, copied along when the pass is compacted
-B_S, B_L, B_M, B_D, B_XI = range(12, 17)
-NB = 17
-# rows of pair_ij (3, P): owner i, partner j, and (compacted passes) the pair index k
-PI, PJ, PK = range(3)
-# clock (NCLOCK,): time origin, wall angle, its angular velocity over the last step, the
-# angle at the last list build, the largest distance of a wall disk from the centre
-T_ORIGIN, THETA, LAST_OMEGA, THETA_BUILD, WALL_RMAX = range(5)
-ZB_NEAR = 5  # the bottom's height when the near-wall list was built
-# the bad-state bound on overlaps, as a fraction of the smaller radius of the pair (set by
-# the Simulation; the per-pair bounds P_LIM are derived from it at each list build)
-OVERLAP_FRAC = 6
-NCLOCK = 7
-# counters (NCOUNT,)
-STEP, N_PAIRS, N_REBUILDS, FORCE_REBUILD, LOG2_SCALE, CONTACT_SUM, STEPS_RUN, N_WALLS = range(8)
-LAST_PAIR_CONTACTS = 8  # contacts among listed pairs at the last evaluation (pass choice)
-COUNT_STALE = 9  # the per-disk pair-contact counts must be recomputed (list rebuilt)
-NEAR_WALLS = 10  # disks in the near-wall list (ivec[CELL_ITEMS]); -1: to be rebuilt
-NCOUNT = 11
-# info (4,): status, particle, other, step
-OK, NONFINITE, DEEP_OVERLAP, LIST_OVERFLOW, TANGENT_NONFINITE = range(5)
-# "other" codes for flat walls in info
-LEFT_WALL, RIGHT_WALL, BOTTOM_WALL = -1, -2, -3
 
 # renormalise the tangent vector when |du|² leaves [2^-400, 2^400]; by powers of two (exact)
 _RENORM_HI = 2.0**400
@@ -1478,7 +1524,7 @@ def _box_forces(
 @njit
 def _at(st, r):
     """Replica ``r`` of the storage tuple ``st``: the arrays of
-    :data:`granpipe.engine.simulation._STORAGE` (``vec, sca, ivec, walls, pair_start,
+    :data:`granpipe.engine.layout.STORAGE` (``vec, sca, ivec, walls, pair_start,
     pair_ij, pair_c, pair_xi, pair_dxi, old_start, old_j, old_xi, old_dxi, buf, touch,
     cell_count, cell_start, clock, counters``), each with a leading replica axis."""
     return (

@@ -49,6 +49,7 @@ from granpipe.engine.contract import (
     pair_force_jvp,
     perturbed_force,
     perturbed_kinematics,
+    select,
 )
 from granpipe.errors import ConfigError
 
@@ -95,17 +96,17 @@ def drum_force(nx, ny, delta, vx, vy, k_n, gamma_n, gamma_t, mu):
     regime : int
         NO_FRICTION, VISCOUS or COULOMB (which smooth piece applies).
     """
-    # written with selects only, so that the pair pass vectorises
+    # choices by select only: the four-lane pass runs this very function on lanes
     vn = vx * nx + vy * ny
     u = vy * nx - vx * ny
     f_n = -k_n * delta - gamma_n * vn
     cap = mu * f_n
-    cap = cap if cap > 0.0 else 0.0
+    cap = select(cap > 0.0, cap, 0.0)
     visc = gamma_t * abs(u)
     coulomb = visc >= cap
-    mag = cap if coulomb else visc
-    f_t = -mag if u > 0.0 else mag
-    regime = NO_FRICTION if f_n <= 0.0 else (COULOMB if coulomb else VISCOUS)
+    mag = select(coulomb, cap, visc)
+    f_t = select(u > 0.0, -mag, mag)
+    regime = select(f_n <= 0.0, NO_FRICTION, select(coulomb, COULOMB, VISCOUS))
     fx = f_n * nx - f_t * ny
     fy = f_n * ny + f_t * nx
     return fx, fy, f_n, f_t, regime
@@ -141,8 +142,8 @@ def drum_force_jvp(
     dvn = dvx * nx + dvy * ny + psi * u
     du = dvy * nx - dvx * ny - psi * vn
     dfn = -k_n * (ddx * nx + ddy * ny) - gamma_n * dvn
-    dcoul = -mu * dfn if u > 0.0 else mu * dfn
-    dft = -gamma_t * du if regime == VISCOUS else (dcoul if regime == COULOMB else 0.0)
+    dcoul = select(u > 0.0, -mu * dfn, mu * dfn)
+    dft = select(regime == VISCOUS, -gamma_t * du, select(regime == COULOMB, dcoul, 0.0))
     a = dfn - f_t * psi  # along n
     b = f_n * psi + dft  # along t
     return a * nx - b * ny, a * ny + b * nx

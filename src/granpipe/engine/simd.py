@@ -20,13 +20,13 @@ included, so an edit here recompiles the kernels that use it in the next process
 
 from __future__ import annotations
 
-import ast
-import inspect
-import textwrap
+import types as pytypes
 
 from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
+
+from granpipe.engine.layout import B_DELTA, B_DVX, B_DVY, B_E0, B_INV_R, B_NX, B_NY
 
 __all__ = [
     "gather4",
@@ -410,28 +410,16 @@ def _select(c, a, x):
 def lanes_of(fn):
     """The scalar law ``fn`` (a jitted leaf of :mod:`granpipe.engine.laws`) run on four lanes.
 
-    The leaf's own source is compiled again with each conditional expression ``a if c
-    else x`` turned into a lane select: the vector kernels evaluate the very expressions
-    of the scalar law, in the same order, so lane by lane they give the same bits.
+    The leaf's own code object is called with its global ``select``
+    (:func:`granpipe.engine.contract.select`) bound to a lane select: the vector kernels
+    evaluate the very expressions of the scalar law, in the same order, so lane by lane
+    they give the same bits. A leaf that branches on a value (``if``, ``a if c else x``)
+    cannot run on lanes: the lane comparison refuses to be a truth value.
     """
     py = getattr(fn, "py_func", fn)
-    tree = ast.parse(textwrap.dedent(inspect.getsource(py)))
-    fdef = tree.body[0]
-    fdef.decorator_list = []
-
-    class _IfExpToSelect(ast.NodeTransformer):
-        def visit_IfExp(self, node):
-            self.generic_visit(node)
-            call = ast.Call(
-                ast.Name("_select", ast.Load()), [node.test, node.body, node.orelse], []
-            )
-            return ast.copy_location(call, node)
-
-    tree = ast.fix_missing_locations(_IfExpToSelect().visit(tree))
-    ns = dict(py.__globals__)
-    ns["_select"] = _select
-    exec(compile(tree, inspect.getsourcefile(py), "exec"), ns)
-    return ns[fdef.name]
+    env = dict(py.__globals__)
+    env["select"] = _select
+    return pytypes.FunctionType(py.__code__, env, py.__name__, py.__defaults__, py.__closure__)
 
 
 # --------------------------------------------------------------------------- pair frames
@@ -618,7 +606,6 @@ def _sqrt(x):
 
 
 # rows of the pair buffer (kernels.B_*) through which the two halves of a pair pass talk
-_B_NX, _B_NY, _B_DVX, _B_DVY, _B_E0, _B_DELTA, _B_INV_R = 0, 1, 2, 3, 4, 8, 9
 
 
 @intrinsic
@@ -746,14 +733,14 @@ def _pair_front4(full):
                 changed = builder.or_(changed, builder.shl(bit, ir.Constant(_I64, lane)))
             fr.store_lanes("touch", t64)
             bad = fr.count(fr.mask_i64(-delta > lim))
-            out = [(_B_NX, dx * inv_r), (_B_NY, dy * inv_r), (_B_DVX, dvx), (_B_DVY, dvy)]
-            out += [(_B_DELTA, delta), (_B_INV_R, inv_r)]
+            out = [(B_NX, dx * inv_r), (B_NY, dy * inv_r), (B_DVX, dvx), (B_DVY, dvy)]
+            out += [(B_DELTA, delta), (B_INV_R, inv_r)]
             for row, v in out:
                 fr.store_lanes("rows", v, fr.row(row))
             with builder.if_then(builder.icmp_signed(">", fr.size("tp"), ir.Constant(_I64, 0))):
                 e = fr.xy_diff("tp", i, j) + fr.xy_diff("tv", i, j)
                 for c, val in enumerate(e):
-                    fr.store_lanes("rows", val, fr.row(_B_E0 + c))
+                    fr.store_lanes("rows", val, fr.row(B_E0 + c))
             code = builder.add(fr.count(t64), builder.mul(bad, ir.Constant(_I64, 8)))
             return builder.add(code, builder.mul(changed, ir.Constant(_I64, 64)))
 
@@ -786,7 +773,7 @@ def _drum_back4(full, tangent):
 
         def codegen(context, builder, signature, args):
             fr = _Frame(context, builder, signature, args, _BACK_ARGS, full)
-            rows = (_B_NX, _B_NY, _B_DVX, _B_DVY, _B_DELTA, _B_INV_R)
+            rows = (B_NX, B_NY, B_DVX, B_DVY, B_DELTA, B_INV_R)
             nx, ny, dvx, dvy, delta, inv_r = (fr.lanes("rows", fr.row(r)) for r in rows)
             par = [fr.splat("law", c) for c in range(4)]
             fx, fy, f_n, f_t, regime = force4(nx, ny, delta, dvx, dvy, *par)
@@ -794,7 +781,7 @@ def _drum_back4(full, tangent):
             t = _Mask(builder, builder.icmp_unsigned("!=", fr.lanes("touch", elem=_I64), zero))
             sums = [("f", _select(t, fx, 0.0), _select(t, fy, 0.0))]
             if tangent:
-                e = [fr.lanes("rows", fr.row(_B_E0 + c)) for c in range(4)]
+                e = [fr.lanes("rows", fr.row(B_E0 + c)) for c in range(4)]
                 gx, gy = jvp4(nx, ny, inv_r, dvx, dvy, f_n, f_t, regime, *e, *par)
                 sums.append(("tf", _select(t, gx, 0.0), _select(t, gy, 0.0)))
             sums = [

@@ -17,6 +17,7 @@ import numpy as np
 
 from granpipe.engine import kernels as K
 from granpipe.engine.contract import ContactLaw
+from granpipe.engine.layout import STORAGE
 from granpipe.engine.neighbours import cell_capacity, pair_capacity
 from granpipe.engine.walls import NO_FLAT_WALLS, NO_WALL_DISKS, FlatWalls, WallDisks
 from granpipe.errors import ConfigError, SimulationError
@@ -32,18 +33,10 @@ _STATUS_TEXT = {
 _WALL_NAMES = {K.LEFT_WALL: "left wall", K.RIGHT_WALL: "right wall", K.BOTTOM_WALL: "bottom wall"}
 
 
-_STORAGE = (
-    "vec", "sca", "ivec", "walls", "pair_start", "pair_ij", "pair_c", "pair_xi", "pair_dxi",
-    "old_start", "old_j", "old_xi", "old_dxi", "buf", "touch", "cell_count", "cell_start",
-    "clock", "counters",
-)  # fmt: skip
-"""Storage arrays every stepping kernel takes, as one tuple in this order (:func:`_storage`)."""
-
-
 def _storage(s: dict) -> tuple:
     """The arrays of a state's storage dict as the tuple every stepping kernel takes
-    (:data:`_STORAGE` order; ``kernels._at`` picks one replica of it)."""
-    return tuple(s[k] for k in _STORAGE)
+    (:data:`granpipe.engine.layout.STORAGE` order; ``kernels._at`` picks one replica)."""
+    return tuple(s[k] for k in STORAGE)
 
 
 class Ensemble:
