@@ -12,6 +12,7 @@ SCALES = [
     "config/validation.yaml",
     "config/paper.yaml",
     "config/box_walls.yaml",
+    "config/friction.yaml",
 ]
 
 
