@@ -148,7 +148,7 @@ def drum_lammps(lmp, sim, state, tmp):
     cx, cy = sim.wall_disks.centre
     period = 2.0 * math.pi / abs(omega)
     axis = "0 0 1" if omega > 0 else "0 0 -1"
-    cmds = _common(sim.dt, float(state._s["skin"]), data)
+    cmds = _common(sim.dt, state.skin, data)
     cmds += [
         "group mobile type 1",
         "group wall type 2",
@@ -181,7 +181,7 @@ def box_lammps(lmp, sim, state, tmp):
     _write_data(data, pos, vel, np.asarray(state.spins), diam, mass, np.ones(n, int), box)
     coeffs = f"{law.kappa_n:.17g} {law.kappa_t:.17g} {law.gamma_n:.17g} {law.gamma_t:.17g}"
     wall_law = f"hooke/history {coeffs} {law.mu:.17g} 1"
-    cmds = _common(sim.dt, float(state._s["skin"]), data)
+    cmds = _common(sim.dt, state.skin, data)
     cmds += [
         f"pair_style gran/{wall_law}",
         "pair_coeff * *",

@@ -249,6 +249,11 @@ class Ensemble:
         return float(th[0]) if self._single else th
 
     @property
+    def skin(self) -> float:
+        """Verlet skin of the state's neighbour list [length]."""
+        return float(self._s["skin"])
+
+    @property
     def has_tangent(self) -> bool:
         """Whether a tangent vector has been set (:meth:`Simulation.set_tangent`)."""
         return bool(self._s["has_tangent"])
