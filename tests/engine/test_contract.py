@@ -14,14 +14,16 @@ import pytest
 from granpipe.engine import (
     BoxLaw,
     DrumLaw,
+    FlatWalls,
     Simulation,
     StaticFrictionLaw,
     WallDisks,
     registered_laws,
 )
 from granpipe.engine.static_friction import K_T_OVER_K_N
-from granpipe.errors import ConfigError
+from granpipe.errors import ConfigError, SimulationError
 from tests.engine.conftest import DRUM_LAW, DT_DRUM
+from tests.engine.geometry import random_disks_in_box
 
 OMEGA = -2.4417e-4  # the drum of docs/drum.md, clockwise, in its reduced units
 
@@ -301,17 +303,13 @@ def test_static_friction_default_tangential_stiffness_matches_periods():
     assert period == pytest.approx(2 * np.pi / w_t, rel=0.01)
 
 
-def test_bad_coefficients_flat_walls_and_a_drum_law_state_are_refused():
-    from granpipe.engine import FlatWalls
-    from granpipe.errors import ConfigError
+def test_bad_coefficients_and_a_drum_law_state_are_refused():
 
     with pytest.raises(ConfigError, match="k_t must be > 0"):
         StaticFrictionLaw(k_n=1.0, gamma_n=0.0, gamma_t=0.0, mu=0.4, k_t=0.0)
     with pytest.raises(ConfigError, match="mu must be >= 0"):
         StaticFrictionLaw(k_n=1.0, gamma_n=0.0, gamma_t=0.0, mu=float("nan"))
     law = LAWS["static_friction"]
-    with pytest.raises(ConfigError, match="flat walls"):
-        Simulation(law, dt=1e-3, flat_walls=FlatWalls(x_left=0.0, x_right=10.0))
     sim_d = Simulation(DrumLaw(k_n=1.0, gamma_n=0.0, gamma_t=0.0, mu=0.0), dt=1e-3)
     st = sim_d.new_state(np.zeros((1, 2)), [0.5], [1.0])
     with pytest.raises(ConfigError, match="different contact law"):
@@ -332,3 +330,82 @@ def test_profiling_the_generic_passes_leaves_the_state_where_it_was(piles):
         sim.run(st, 200)
     np.testing.assert_array_equal(state.positions, twin.positions)
     np.testing.assert_array_equal(state.shear_history()[1], twin.shear_history()[1])
+
+
+# ----------------------------------------------------------------- flat walls
+SHAKER = FlatWalls(x_left=0.0, x_right=8.0, bottom=True, z0=0.0, amplitude=0.05, omega=3.0)
+"""A box 8 disk diameters wide whose bottom shakes at Gamma = A omega²/g = 0.45 (reduced
+units of the drum: g = 1)."""
+
+BOX_WALLS = FlatWalls(x_left=0.0, x_right=8.0, bottom=True, z0=0.0)
+
+
+@pytest.fixture(scope="module")
+def boxes():
+    """Per law: (generic-pass simulation of a box with side walls and a floor, a pile of
+    40 disks settled in it over 34 t0)."""
+    rng = np.random.default_rng(5)
+    n = 40
+    radii = np.full(n, 0.5)
+    pos = random_disks_in_box(rng, radii, (0.0, 0.0), (8.0, 12.0))
+    out = {}
+    for name, law in LAWS.items():
+        sim = Simulation(law, dt=DT_DRUM, flat_walls=BOX_WALLS, passes="generic")
+        spins = np.zeros(n) if law.has_spin else None
+        state = sim.new_state(pos, radii, np.ones(n), spins=spins)
+        sim.run(state, 30000)
+        out[name] = (sim, state)
+    return out
+
+
+@pytest.mark.parametrize("name", sorted(LAWS))
+def test_twin_trajectory_agrees_with_the_tangent_vector_against_flat_walls(boxes, name):
+    """The tangent vector of the generic passes against twin trajectories of a pile
+    resting on a floor between two side walls, 200 steps: relative error O(eps), so the
+    wall contacts (with their shear histories under the box and static-friction laws)
+    are linearised exactly. (Over longer times the pile's contacts switch pieces: at
+    rest, many sit at the Coulomb bound.)"""
+    sim, pile = boxes[name]
+    walls = (pile.positions[:, 1] < 0.51).sum() + (pile.positions[:, 0] < 0.51).sum()
+    walls += (pile.positions[:, 0] > 7.49).sum()
+    assert walls >= 8  # disks on the floor and against the side walls
+    rng = np.random.default_rng(7)
+    du = rng.uniform(-1, 1, (pile.n, 2, 2))
+    dspin = rng.uniform(-1, 1, pile.n) if sim.law.has_spin else None
+    e5 = twin_error(sim, pile, du, dspin, 1e-5, 200)
+    e6 = twin_error(sim, pile, du, dspin, 1e-6, 200)
+    assert e5 < 1e-4 and e6 < 1e-5, (e5, e6)
+    assert 8.0 < e5 / e6 < 12.0, (e5, e6)
+
+
+def test_box_law_on_the_generic_passes_follows_its_own_passes_with_flat_walls():
+    """The box law through the generic passes (walls as infinitely heavy disks, the
+    law's side and bottom friction) and through its own passes: the same trajectory of
+    a shaken box to round-off over 300 steps."""
+    law = BoxLaw(kappa_n=565.97, kappa_t=150.0, gamma_n=8.0, gamma_t=8.0, mu=0.44,
+                 mu_wall=0.3, mu_side=0.1)  # fmt: skip
+    rng = np.random.default_rng(3)
+    n = 40
+    radii = np.full(n, 0.5)
+    pos = random_disks_in_box(rng, radii, (0.0, 0.0), (8.0, 12.0))
+    vel = rng.normal(0.0, 0.3, (n, 2))
+    states = []
+    for passes in ("law", "generic"):
+        sim = Simulation(law, dt=DT_DRUM, flat_walls=SHAKER, passes=passes)
+        st = sim.new_state(pos, radii, np.ones(n), velocities=vel)
+        sim.run(st, 3000)
+        states.append(st)
+    own, gen = states
+    assert int(own.contacts.sum()) > n  # a pile on the floor, against the walls
+    np.testing.assert_allclose(gen.positions, own.positions, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(gen.velocities, own.velocities, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(gen.spins, own.spins, rtol=0, atol=1e-7)
+
+
+def test_a_disk_driven_into_a_flat_wall_names_the_wall():
+    sim = Simulation(LAWS["static_friction"], dt=DT_DRUM, gravity=(0.0, 0.0),
+                     flat_walls=FlatWalls(x_left=0.0, bottom=False), passes="generic")  # fmt: skip
+    st = sim.new_state([[0.6, 5.0]], [0.5], [1.0], velocities=[[-50.0, 0.0]], spins=[0.0])
+    with pytest.raises(SimulationError, match="overlap") as err:
+        sim.run(st, 200)
+    assert err.value.context.get("other") == "left wall"

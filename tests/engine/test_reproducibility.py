@@ -5,6 +5,7 @@ import pytest
 
 from granpipe.engine import BoxLaw, Ensemble, FlatWalls, Simulation, State, WallDisks
 from granpipe.engine import kernels as K
+from granpipe.engine import layout as L
 from granpipe.errors import SimulationError
 from tests.engine.conftest import DRUM_LAW, DT_DRUM, small_drum
 from tests.engine.geometry import random_disks_in_box
@@ -163,19 +164,23 @@ def test_saved_and_restored_state_continues_bit_identically(kind, tmp_path):
 
 
 @pytest.mark.parametrize("kind", ["drum", "box"])
-def test_state_saved_in_format_5_continues_bit_identically(kind):
+@pytest.mark.parametrize("fmt", [5, 6])
+def test_state_saved_in_format_5_or_6_continues_bit_identically(fmt, kind):
     """Format 5 had no rows for the tangent vector's spin and torque and no perturbations
-    of the shear histories (the generic passes' storage): such a state loads with them
-    zero and continues exactly."""
+    of the shear histories, format 6 none for the flat walls' history perturbations and
+    pieces (the generic passes' storage): such a state loads with them zero and
+    continues exactly."""
     make, tangent = (drum_state, True) if kind == "drum" else (box_state, False)
     sim, a = make(5)
     sim.run(a, 300, tangent=tangent)
     old = a.to_arrays()
-    old["engine_format"] = np.asarray(5)
-    old["sca"] = old["sca"][:, : K.T_SPIN]
-    del old["pair_dxi"]
+    old["engine_format"] = np.asarray(fmt)
+    old["sca"] = old["sca"][:, : L.T_SPIN if fmt == 5 else L.T_XI_LEFT]
+    old["ivec"] = old["ivec"][:, : L.PIECE_LEFT]
+    if fmt == 5:
+        del old["pair_dxi"]
     b = State.from_arrays(old)
-    assert b._s["sca"].shape == a._s["sca"].shape
+    assert b._s["sca"].shape == a._s["sca"].shape and b._s["ivec"].shape == a._s["ivec"].shape
     sim.run(a, 300, tangent=tangent)
     sim.run(b, 300, tangent=tangent)
     assert_identical(a, b)

@@ -339,6 +339,13 @@ class ContactLaw:
             )
         return jac
 
+    def wall_leaf_params(self) -> tuple:
+        """The leaves' parameters at the three flat walls (left, right, bottom), for the
+        generic passes' wall contacts; the pair parameters by default (a law whose walls
+        grip differently overrides it)."""
+        p = self.leaf_params()
+        return (p, p, p)
+
     def kernels(self):
         """The law's :class:`Kernels`: the generic scalar passes unless the law has its own."""
         from granpipe.engine.generic import GENERIC_KERNELS

@@ -12,8 +12,11 @@ Storage: the engine's (:mod:`granpipe.engine.layout`: its rows and the ``STORAGE
 tuple), with the spin perturbation and its torque in the rows
 ``T_SPIN``, ``T_TORQUE`` and the history's perturbation per listed pair in
 ``pair_dxi``. Contacts are between disks; wall disks (``is_wall``) move as prescribed
-and turn with the drum (their spin is the wall's angular velocity). Flat walls are not
-part of these passes (:class:`granpipe.engine.Simulation` refuses them for such a law).
+and turn with the drum (their spin is the wall's angular velocity). A flat wall is the
+second disk of a contact made infinitely heavy and still (the bottom moving with the
+drive), with the law's parameters at that wall
+(:meth:`~granpipe.engine.contract.ContactLaw.wall_leaf_params`) and a shear history
+(and its perturbation) per disk and wall.
 
 One step ``n -> n+1`` (velocity Verlet, forces at half-step velocities, as everywhere
 in the engine)::
@@ -61,6 +64,8 @@ from granpipe.engine.kernels import (
     _set_gravity,
     _time,
     _update_wall_disks,
+    _wall_gap,
+    _wall_normal,
 )
 from granpipe.engine.layout import (
     CONTACT_SUM,
@@ -72,6 +77,7 @@ from granpipe.engine.layout import (
     INV_MASS,
     IS_WALL,
     LAST_OMEGA,
+    LEFT_WALL,
     LIST_OVERFLOW,
     LOG2_SCALE,
     MG,
@@ -79,10 +85,12 @@ from granpipe.engine.layout import (
     N_WALLS,
     NONFINITE,
     OK,
+    OVERLAP_FRAC,
     P_LIM,
     P_MEFF,
     P_SUM,
     PI,
+    PIECE_LEFT,
     PJ,
     POS,
     POS_BUILD,
@@ -96,13 +104,15 @@ from granpipe.engine.layout import (
     T_SPIN,
     T_TORQUE,
     T_VEL,
+    T_XI_LEFT,
     TANGENT_NONFINITE,
     THETA,
     TORQUE,
     VEL,
+    XI_LEFT,
 )
 from granpipe.engine.neighbours import carry_history
-from granpipe.engine.walls import wall_omega
+from granpipe.engine.walls import bottom_height, bottom_velocity, wall_omega
 
 __all__ = ["GENERIC_KERNELS"]
 
@@ -213,10 +223,93 @@ def _pair_pass(law, vec, sca, ivec, pair_ij, pair_c, pair_xi, pair_dxi, touch, n
 
 
 @njit
+def _wall_pass(walls, vec, sca, ivec, fw, zb, vb, dt, mode, overlap_frac):
+    """Contacts of every mobile disk with the flat walls (``walls``: the leaves' parameters
+    at the left, right and bottom wall), as the pair pass does for a pair whose second
+    disk is the wall: infinitely heavy, not turning, moving with the bottom's velocity
+    ``vb`` (at height ``zb``); normal from the wall into the box, contact point
+    mid-overlap (lever ``a_i - overlap/2``), ``m_eff`` the disk's mass, the shear history
+    per disk and wall (``sca[XI_LEFT + w]``, its perturbation ``sca[T_XI_LEFT + w]``).
+    The wall does not move in tangent space, so the relative perturbation is the disk's.
+
+    Returns ``(contacts, bad disk, bad wall)``: the disk and wall (0, 1, 2) of the first
+    overlap deeper than ``overlap_frac`` times the disk's radius (-1 if none).
+    """
+    pos = vec[POS]
+    vel = vec[VEL]
+    frc = vec[FRC]
+    radius = sca[RADIUS]
+    inv_mass = sca[INV_MASS]
+    spin = sca[SPIN]
+    trq = sca[TORQUE]
+    tr = vec[T_POS]
+    tv = vec[T_VEL]
+    tf = vec[T_FRC]
+    tw = sca[T_SPIN]
+    tt = sca[T_TORQUE]
+    wall = ivec[IS_WALL]
+    contacts = ivec[CONTACTS]
+    forward = mode != 2
+    tangent = mode != 0
+    ncon = 0
+    for w in range(3):
+        if fw[2 * w] == 0.0:
+            continue
+        law = walls[w]
+        xi_w = sca[XI_LEFT + w]
+        dxi_w = sca[T_XI_LEFT + w]
+        piece_w = ivec[PIECE_LEFT + w]
+        nx, ny = _wall_normal(w)
+        for i in range(pos.shape[0]):
+            if wall[i] != 0:
+                continue
+            ai = radius[i]
+            overlap = ai - _wall_gap(w, pos, i, fw, zb)
+            if overlap < 0.0:
+                if forward:
+                    xi_w[i] = 0.0
+                    piece_w[i] = 0
+                if tangent:
+                    dxi_w[i] = 0.0
+                continue
+            if overlap > overlap_frac * ai:
+                return ncon, i, w
+            ncon += 1
+            contacts[i] += 1
+            lev_i = ai - 0.5 * overlap
+            vx = vel[i, 0]
+            vy = vel[i, 1] - (vb if w == 2 else 0.0)
+            m_i = 1.0 / inv_mass[i]
+            fx, fy, ti, _tj, xi_new, f_n, f_t, piece = pair_force(
+                law, nx, ny, -overlap, lev_i, 0.0, vx, vy, spin[i], 0.0, m_i, xi_w[i], dt
+            )
+            if forward:
+                frc[i, 0] += fx
+                frc[i, 1] += fy
+                trq[i] += ti
+                xi_w[i] = xi_new
+                piece_w[i] = 1 + piece
+            if tangent:
+                dfx, dfy, dti, _dtj, dxi_new = pair_force_jvp(
+                    law, nx, ny, 0.0, lev_i, 0.0, vx, vy, spin[i], 0.0, m_i, f_n, f_t,
+                    piece_w[i] - 1, dt, tr[i, 0], tr[i, 1], tv[i, 0], tv[i, 1], tw[i], 0.0,
+                    dxi_w[i],
+                )  # fmt: skip
+                tf[i, 0] += dfx
+                tf[i, 1] += dfy
+                tt[i] += dti
+                dxi_w[i] = dxi_new
+    return ncon, -1, -1
+
+
+@njit
 def _forces(
-    law, vec, sca, ivec, pair_ij, pair_c, pair_xi, pair_dxi, touch, counters, dt, mode, info, step
-):
-    """Zero the rows (gravity into the forces), run the pair pass, clear the walls' rows.
+    law, vec, sca, ivec, pair_ij, pair_c, pair_xi, pair_dxi, touch, counters, dt, mode, info, step,
+    fw, zb, vb, overlap_frac,
+):  # fmt: skip
+    """Zero the rows (gravity into the forces), run the pair pass and the flat walls'
+    pass, clear the wall disks' rows. ``law`` is ``(pair parameters, (left, right,
+    bottom) wall parameters)``.
 
     Returns the contact count, or -1 after recording a bad overlap in ``info``.
     """
@@ -238,11 +331,17 @@ def _forces(
             tf[i, 1] = 0.0
             tt[i] = 0.0
     ncon, bad = _pair_pass(
-        law, vec, sca, ivec, pair_ij, pair_c, pair_xi, pair_dxi, touch, counters[N_PAIRS], dt, mode
-    )
+        law[0], vec, sca, ivec, pair_ij, pair_c, pair_xi, pair_dxi, touch, counters[N_PAIRS],
+        dt, mode,
+    )  # fmt: skip
     if bad >= 0:
         _fail(info, DEEP_OVERLAP, pair_ij[PI, bad], pair_ij[PJ, bad], step)
         return -1
+    nwall, bad_i, bad_w = _wall_pass(law[1], vec, sca, ivec, fw, zb, vb, dt, mode, overlap_frac)
+    if bad_i >= 0:
+        _fail(info, DEEP_OVERLAP, bad_i, LEFT_WALL - bad_w, step)
+        return -1
+    ncon += nwall
     wall = ivec[IS_WALL]
     for i in range(n):
         if wall[i] != 0:
@@ -449,6 +548,14 @@ def _renormalise(vec, sca, pair_dxi, npairs, num, total, counters):
 
 
 @njit
+def _bottom(fw, t):
+    """Height and velocity of the flat bottom at time ``t`` (0, 0 without one)."""
+    if fw[4] == 0.0:
+        return 0.0, 0.0
+    return bottom_height(fw, t), bottom_velocity(fw, t)
+
+
+@njit
 def _replica(
     law, n_steps, stride, tangent, dt, g, wd, fw, skin, st, out_lam, out_nlam, out_speed, info
 ):
@@ -466,7 +573,7 @@ def _replica(
         moved, bad = _kick_drift(vec, sca, ivec, dt, half_skin, tangent)
         if bad:
             return _fail(info, NONFINITE, _first_bad(vec, sca, ivec), -1, step - 1)
-        wmoved, _zb, _vb = _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin)
+        wmoved, zb, vb = _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin)
         counters[STEP] = step
         if moved or wmoved or counters[FORCE_REBUILD] != 0:
             if not _rebuild_generic(vec, sca, ivec, skin, st, counters, clock):
@@ -486,6 +593,10 @@ def _replica(
             mode,
             info,
             step,
+            fw,
+            zb,
+            vb,
+            clock[OVERLAP_FRAC],
         )
         if ncon < 0:
             return info[0]
@@ -523,6 +634,7 @@ def _refresh_replica(law, tangent, rebuild, g, wd, fw, skin, st, dt, info):
         _update_wall_disks(vec, sca, walls, n_walls, wd, clock[THETA], omega)
         clock[LAST_OMEGA] = omega
     step = counters[STEP]
+    zb, vb = _bottom(fw, t)
     _set_gravity(vec, sca, g[0], g[1])
     i = _first_bad(vec, sca, ivec)
     if i >= 0:
@@ -544,6 +656,10 @@ def _refresh_replica(law, tangent, rebuild, g, wd, fw, skin, st, dt, info):
         1 if tangent else 0,
         info,
         step,
+        fw,
+        zb,
+        vb,
+        clock[OVERLAP_FRAC],
     )
     if ncon < 0:
         return info[0]
@@ -560,6 +676,7 @@ def _tangent_replica(law, g, wd, fw, skin, st, dt, info):
     (vec, sca, ivec, walls, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, old_start,
      old_j, old_xi, old_dxi, buf, touch, cell_count, cell_start, clock, counters) = st
     # fmt: on
+    zb, vb = _bottom(fw, _time(clock, counters, dt))
     ncon = _forces(
         law,
         vec,
@@ -575,6 +692,10 @@ def _tangent_replica(law, g, wd, fw, skin, st, dt, info):
         2,
         info,
         counters[STEP],
+        fw,
+        zb,
+        vb,
+        clock[OVERLAP_FRAC],
     )
     if ncon < 0:
         return info[0]
@@ -666,6 +787,6 @@ def evaluate_pair_jvp(
 
 
 GENERIC_KERNELS = Kernels(
-    run_serial, run_parallel, refresh_serial, set_tangent_serial, False, True,
+    run_serial, run_parallel, refresh_serial, set_tangent_serial, True, True,
     profile_hook("generic_passes"),
 )  # fmt: skip

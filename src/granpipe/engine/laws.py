@@ -612,6 +612,13 @@ class BoxLaw(ContactLaw):
         """The parameters as the contract's leaves take them (pair friction ``mu``)."""
         return BoxParams(*(float(x) for x in self.params()[:5]))
 
+    def wall_leaf_params(self) -> tuple:
+        """The leaves' parameters at the left, right and bottom wall: the pair law with
+        ``mu_side``, ``mu_side`` and ``mu_wall``."""
+        p = self.leaf_params()
+        side, bottom = p._replace(mu=float(self.mu_s)), p._replace(mu=float(self.mu_w))
+        return (side, side, bottom)
+
     def kernels(self):
         """The box law's own passes (:func:`granpipe.engine.kernels.box_kernels`)."""
         from granpipe.engine.kernels import box_kernels

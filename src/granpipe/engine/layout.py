@@ -13,10 +13,15 @@ NV = 11
 # passes of laws with spin, granpipe.engine.generic)
 RADIUS, INV_MASS, INV_INERTIA, SPIN, TORQUE, T_PREV, XI_LEFT, XI_RIGHT, XI_BOTTOM = range(9)
 T_SPIN, T_TORQUE = 9, 10
-NS = 11
+# the perturbations of the shear histories against the three flat walls (generic passes)
+T_XI_LEFT, T_XI_RIGHT, T_XI_BOTTOM = 11, 12, 13
+NS = 14
 # rows of ivec (NI, N)
 IS_WALL, CONTACTS, CELL_ITEMS, CELL_OF, PAIR_CONTACTS = range(5)
-NI = 5
+# the smooth piece (plus one; 0: apart) of each disk's contact with the three flat walls
+# at the last evaluation (generic passes; the tangent-only evaluation reuses them)
+PIECE_LEFT, PIECE_RIGHT, PIECE_BOTTOM = 5, 6, 7
+NI = 8
 # rows of pair_c (NPC, P): a_i + a_j, overlap bound, m_eff, a_i - a_j
 P_SUM, P_LIM, P_MEFF, P_DIFF = range(4)
 NPC = 4

@@ -89,14 +89,14 @@ def _rebuild(nrep, vec, sca, ivec, skin, pair_start, pair_ij, pair_c, cc, cs, cl
 
 
 @njit
-def _generic_forces(nrep, law, st, mode, info):
+def _generic_forces(nrep, law, st, mode, info, fw):
     (vec, sca, ivec, _w, _ps, pair_ij, pair_c, pair_xi, pair_dxi, _os, _oj, _ox, _od, _b,
      touch, _cc, _cs, _clock, counters) = st  # fmt: skip
     c = 0
     for _ in range(nrep):
         c += G._forces(
             law, vec, sca, ivec, pair_ij, pair_c, pair_xi, pair_dxi, touch, counters, 0.0,
-            mode, info, 0,
+            mode, info, 0, fw, 0.0, 0.0, 2.0,
         )  # fmt: skip
     return c
 
@@ -197,7 +197,8 @@ def generic_passes(sim, state, repeats: int = 5, nrep: int = 2000) -> dict:
     info = np.zeros(4, dtype=np.int64)
     out = {"n_pairs": int(st[18][K.N_PAIRS]), "n_particles": int(st[0].shape[1])}
     for mode, tag in ((0, "forward"), (1, "tangent")):
-        out[f"pairs.{tag}"] = _best(_generic_forces, (law, st, mode, info), nrep, repeats)
+        args = (law, st, mode, info, fw)
+        out[f"pairs.{tag}"] = _best(_generic_forces, args, nrep, repeats)
         out[f"kicks.{tag}"] = _best(_generic_kicks, (st, mode == 1), nrep, repeats)
     out["rebuild"] = _best(_generic_rebuild, (st, float(state._s["skin"])), max(1, nrep // 50),
                            repeats)  # fmt: skip

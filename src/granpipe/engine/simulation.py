@@ -122,7 +122,7 @@ class Ensemble:
     def from_arrays(arrays):
         """Rebuild a :class:`State` or :class:`Ensemble` saved by :meth:`to_arrays`."""
         fmt = int(np.asarray(arrays.get("engine_format", -1)))
-        if fmt not in (2, 3, 4, 5, _FORMAT):
+        if fmt not in (2, 3, 4, 5, 6, _FORMAT):
             raise ConfigError(f"engine state format {fmt} is not {_FORMAT}; rerun to regenerate")
         storage = {}
         for key, val in arrays.items():
@@ -145,12 +145,15 @@ class Ensemble:
         if fmt == 2:
             # one-byte touch flags then (64-bit now: the law passes then need no packing)
             storage["touch"] = storage["touch"].astype(np.int64)
+        if fmt < 7:
+            # fewer rows then: no perturbations of spin, torque and the wall histories
+            # (before 6), no wall pieces (before 7); the generic passes' rows start at 0
+            for key, rows in (("sca", K.NS), ("ivec", K.NI)):
+                a = storage[key]
+                grown = np.zeros(a.shape[:1] + (rows,) + a.shape[2:], dtype=a.dtype)
+                grown[:, : a.shape[1]] = a
+                storage[key] = grown
         if fmt < 6:
-            # no tangent spin, torque and history then (the generic passes' rows)
-            sca = storage["sca"]
-            grown = np.zeros(sca.shape[:1] + (K.NS,) + sca.shape[2:])
-            grown[:, : sca.shape[1]] = sca
-            storage["sca"] = grown
             storage["pair_dxi"] = np.zeros_like(storage["pair_xi"])
         if fmt >= 4:
             vec = storage["vec"]
@@ -434,7 +437,7 @@ def _pad(arr, width):
     return out
 
 
-_FORMAT = 6
+_FORMAT = 7
 # storage that only carries values within one step or list build (pair buffers, the old
 # list while histories are carried over): not saved by ``to_arrays``
 _SCRATCH_KEYS = ("old_start", "old_j", "old_xi", "old_dxi", "buf")
@@ -548,7 +551,13 @@ class Simulation:
         g = np.asarray(self.gravity, dtype=np.float64)
         wd = NO_WALL_DISKS if self.wall_disks is None else self.wall_disks.params()
         fw = NO_FLAT_WALLS if self.flat_walls is None else self.flat_walls.params()
-        law = self.law.leaf_params() if self.passes == "generic" else self.law.params()
+        from granpipe.engine.generic import GENERIC_KERNELS
+
+        if self._kernels() is GENERIC_KERNELS:
+            # the generic passes take the leaves' parameters, at the pairs and the walls
+            law = (self.law.leaf_params(), self.law.wall_leaf_params())
+        else:
+            law = self.law.params()
         return g, law, wd, fw
 
     def _kernels(self):
