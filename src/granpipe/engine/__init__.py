@@ -34,14 +34,17 @@ parallel=True, max_overlap=0.5, passes="law")``
     -> State`` (or ``Ensemble`` for a leading replica axis);
     ``.run(state, n_steps, *, stride=0, tangent=False) -> Record`` advances in place;
     ``.set_tangent(state, dr, dv, dspin=None)``, ``.random_tangent(state, rng, fraction=0.1)``;
-    ``passes="generic"`` runs any law on the contract's reference passes (no flat walls);
-    ``.refresh(state)`` after editing a state in place; ``.replace(**changes)``.
+    ``passes="generic"`` runs any law on the contract's reference passes (disk and flat walls);
+    ``.refresh(state)`` after editing a state in place; ``.replace(**changes)``;
+    ``.set_shear_history(state, pairs, xi)`` gives a rebuilt state its springs back;
+    ``.profile_passes(state)`` times each pass of the step loop (seconds per call).
 ``State`` / ``Ensemble``
     Views ``positions, velocities, forces, spins, torques, radii, masses, is_wall,
     mobile, contacts`` (per-disk contact counts, walls included), ``time``,
     ``wall_angle``, ``tangent`` (dr, dv at true scale), ``tangent_stored``,
     ``tangent_log2_scale``; ``kinetic_energy()``, ``max_speed()``, ``global_speed()``,
-    ``speeds()``, ``neighbour_stats()``, ``reset_counters()``, ``copy()``;
+    ``speeds()``, ``neighbour_stats()``, ``reset_counters()``, ``copy()``, ``skin``,
+    ``shear_history() -> (pairs, xi)`` (the stretched springs of a State);
     ``to_arrays() -> dict`` and ``State.from_arrays(dict)`` save and restore everything
     a run needs to continue bit-identically (netCDF- or ``np.savez``-ready).
     ``Ensemble.stack(states)``, ``ens[r]`` (a State sharing memory). Arrays of an

@@ -511,7 +511,7 @@ class Simulation:
     passes : str
         ``"law"`` (default): the law's own passes (:meth:`ContactLaw.kernels`);
         ``"generic"``: the generic scalar passes of :mod:`granpipe.engine.generic`, the
-        reference every law's own passes are tested against (disk walls only).
+        reference every law's own passes are tested against.
     """
 
     law: ContactLaw
