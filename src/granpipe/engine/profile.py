@@ -135,19 +135,20 @@ def _one(state):
     return {k: (v[0] if isinstance(v, np.ndarray) and v.ndim > 0 else v) for k, v in s.items()}
 
 
-def _counts(s) -> dict:
-    return {"n_pairs": int(s["counters"][K.N_PAIRS]), "n_particles": int(s["vec"].shape[1])}
+def _setup(sim, state):
+    """``(law parameters, flat walls, replica 0's storage, {n_pairs, n_particles})``."""
+    _g, law, _wd, fw = sim._params()
+    s = _one(state)
+    counts = {"n_pairs": int(s["counters"][K.N_PAIRS]), "n_particles": int(s["vec"].shape[1])}
+    return law, fw, s, counts
 
 
 def drum_passes(sim, state, repeats: int = 5, nrep: int = 5000) -> dict:
     """The drum law's passes: gather, law and scatter (forward), the fused four-lane pass
     (forward and with the tangent vector), the kicks and a list rebuild [s per call]."""
-    g, law, wd, fw = sim._params()
-    s = _one(state)
+    law, fw, s, out = _setup(sim, state)
     vec, sca, ivec, buf, touch = s["vec"], s["sca"], s["ivec"], s["buf"], s["touch"]
-    pair_ij, pair_c, pair_start = s["pair_ij"], s["pair_c"], s["pair_start"]
-    out = _counts(s)
-    npairs = out["n_pairs"]
+    pair_ij, pair_c, pair_start, npairs = s["pair_ij"], s["pair_c"], s["pair_start"], out["n_pairs"]
     out["gather.forward"] = _best(_gather, (vec, sca, pair_ij, buf, npairs, 0), nrep, repeats)
     args = (buf, pair_c, touch, law, npairs)
     out["law.forward"] = _best(_drum_law, args, nrep, repeats)
@@ -170,12 +171,9 @@ def drum_passes(sim, state, repeats: int = 5, nrep: int = 5000) -> dict:
 def box_passes(sim, state, repeats: int = 5, nrep: int = 5000) -> dict:
     """The box law's passes: gather (with spins), law, scatter (with torques), flat
     walls and kicks [s per call]."""
-    g, law, wd, fw = sim._params()
-    s = _one(state)
+    law, fw, s, out = _setup(sim, state)
     vec, sca, ivec, buf, touch = s["vec"], s["sca"], s["ivec"], s["buf"], s["touch"]
-    pair_ij, pair_c, pair_start = s["pair_ij"], s["pair_c"], s["pair_start"]
-    out = _counts(s)
-    npairs = out["n_pairs"]
+    pair_ij, pair_c, pair_start, npairs = s["pair_ij"], s["pair_c"], s["pair_start"], out["n_pairs"]
     xi = s["pair_xi"].copy()
     out["gather"] = _best(_gather, (vec, sca, pair_ij, buf, npairs, 2), nrep, repeats)
     out["law"] = _best(_box_law, (buf, pair_c, xi, touch, law, npairs), nrep, repeats)
@@ -192,10 +190,9 @@ def generic_passes(sim, state, repeats: int = 5, nrep: int = 2000) -> dict:
     kicks (forward, with tangent and norms) and a list rebuild [s per call]."""
     from granpipe.engine.simulation import _storage
 
-    g, law, wd, fw = sim._params()
+    law, fw, _s, out = _setup(sim, state)
     st = tuple(a[0] for a in _storage(state._s))
     info = np.zeros(4, dtype=np.int64)
-    out = {"n_pairs": int(st[18][K.N_PAIRS]), "n_particles": int(st[0].shape[1])}
     for mode, tag in ((0, "forward"), (1, "tangent")):
         args = (law, st, mode, info, fw)
         out[f"pairs.{tag}"] = _best(_generic_forces, args, nrep, repeats)
