@@ -13,6 +13,7 @@ SCALES = [
     "config/paper.yaml",
     "config/box_walls.yaml",
     "config/friction.yaml",
+    "config/friction_long.yaml",
 ]
 
 
