@@ -202,6 +202,26 @@ def test_a_downward_parabola_is_refused_as_an_onset(tmp_path):
     assert abs(r["onset_sign_change_time"].value - 12.0) < 1.0
 
 
+def test_a_lambda_that_turns_positive_before_the_onset_is_measured_as_a_lead(fitted, tmp_path):
+    """λ crossing zero at 12 s (after the V minimum at 3 s): the first crossing after the
+    start-up is that crossing, with the lag of the other rows. λ crossing at 4 s with the
+    V minimum at 8 s: no crossing after the minimum, and the first crossing gives a
+    negative lag, 4 - 8 = -4 s, inside its interval."""
+    _, r, _ = fitted
+    first = r["onset_lambda_bar_first_zero_time"]
+    assert first.value == r["onset_lambda_bar_zero_time"].value
+    assert r["onset_lag_lambda_bar_first"].value == r["onset_lag_lambda_bar"].value
+    paths = synthetic_runs(tmp_path, n_batches=2, batch_size=4, vertex=8.0, zero_on=4.0)
+    results, _ = drum_fits(
+        reduce_runs(paths), load_units(paths), {**FITS, "bootstrap_resamples": 200}
+    )
+    lead = {x.quantity: x for x in results}
+    assert np.isnan(lead["onset_lambda_bar_zero_time"].value)
+    first, lag_first = lead["onset_lambda_bar_first_zero_time"], lead["onset_lag_lambda_bar_first"]
+    assert abs(first.value - 4.0) < 1.0 and first.ci_low < 4.0 < first.ci_high, first
+    assert abs(lag_first.value + 4.0) < 1.0 and lag_first.ci_high < 0.0, lag_first
+
+
 def test_onset_minimum_accepted_in_almost_every_resample(fitted):
     _, r, _ = fitted
     for suffix in ("", "_auto"):

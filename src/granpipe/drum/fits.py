@@ -614,10 +614,14 @@ def _crossings(ens, curves, units, q, stop, cfg, onset_auto) -> list[FitResult]:
     """Zero crossings of λ̄ (with a bootstrap interval) and of the low-pass (value only):
     the first after which the curve keeps its new sign for ``fits.crossing_hold_s``; and
     the lags they give, λ̄'s crossing minus the automatic onset time (onset) or the stop
-    (decay), bootstrapped jointly with the onset."""
+    (decay), bootstrapped jointly with the onset. The crossings are searched after the V
+    minimum (onset) or the stop (decay); for the onset also after the start-up window
+    alone (``onset_lambda_bar_first_zero_time``, and its lag), so that a λ̄ that turns
+    positive *before* the avalanche (the drum with static friction) is measured too."""
     out = []
     hold = _hold_samples(ens, cfg)
     search_v = tuple(cfg["vertex_search_s"])
+    first_from = float(cfg["startup_window_s"][1])
     for w, direction in (("onset", +1), ("decay", -1)):
         t = ens[f"seconds_{w}"].values
         if w == "onset":
@@ -636,8 +640,13 @@ def _crossings(ens, curves, units, q, stop, cfg, onset_auto) -> list[FitResult]:
                 rng = (np.where(np.isfinite(start), start, 0.0)[:, None], float(t[-1]))
             else:
                 v, rng = np.full(mv.shape[0], stop), search
-            c = first_crossing(t, moving_average(ml, q), rng, direction, hold)
-            return np.stack([c, c - v], axis=-1)
+            lb = moving_average(ml, q)
+            c = first_crossing(t, lb, rng, direction, hold)
+            cols = [c, c - v]
+            if w == "onset":  # also the first crossing after the start-up, wherever it is
+                c0 = first_crossing(t, lb, (first_from, float(t[-1])), direction, hold)
+                cols += [c0, c0 - v]
+            return np.stack(cols, axis=-1)
 
         value = float(first_crossing(t, curves[f"lambda_bar_{w}"].values, search, direction, hold))
         change = onset_auto.value if w == "onset" else stop
@@ -654,6 +663,20 @@ def _crossings(ens, curves, units, q, stop, cfg, onset_auto) -> list[FitResult]:
                       method=f"zero crossing of the moving average minus {what}",
                       ).with_ci(boot, 1)
         )  # fmt: skip
+        if w == "onset":
+            first = float(first_crossing(t, curves["lambda_bar_onset"].values,
+                                         (first_from, float(t[-1])), direction, hold))  # fmt: skip
+            out.append(
+                FitResult("onset_lambda_bar_first_zero_time", first, np.nan, "s", n=n,
+                          method=f"first zero crossing of the moving average after the "
+                          f"start-up window ({first_from:g} s) {held}, before or after the "
+                          "onset").with_ci(boot, 2)
+            )  # fmt: skip
+            out.append(
+                FitResult("onset_lag_lambda_bar_first", first - change, np.nan, "s", n=n,
+                          method="that crossing minus the automatic onset time (negative: "
+                          "λ̄ turns positive before the avalanche starts)").with_ci(boot, 3)
+            )  # fmt: skip
         lp = curves[f"lambda_lowpass_{w}"].values
         lp_zero = float(first_crossing(t, lp, search, direction, hold))
         out.append(
