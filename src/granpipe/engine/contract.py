@@ -235,6 +235,8 @@ class Kernels(NamedTuple):
     ``flat_walls`` and ``tangent`` say whether the passes handle flat walls and tangent
     dynamics. ``profile(sim, state, repeats, nrep)`` times each pass on its own
     (:mod:`granpipe.engine.profile`; ``None``: the law offers no profile).
+    ``parameters(law)`` is what the passes take as ``law`` (``None``:
+    :meth:`ContactLaw.params`).
     """
 
     run_serial: object
@@ -244,6 +246,7 @@ class Kernels(NamedTuple):
     flat_walls: bool
     tangent: bool
     profile: object = None
+    parameters: object = None
 
 
 def profile_hook(name: str):

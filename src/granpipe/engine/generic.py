@@ -59,6 +59,7 @@ from granpipe.engine.kernels import (
     _advance_walls,
     _at,
     _block_means,
+    _bottom,
     _fail,
     _rebuild,
     _set_gravity,
@@ -112,7 +113,7 @@ from granpipe.engine.layout import (
     XI_LEFT,
 )
 from granpipe.engine.neighbours import carry_history
-from granpipe.engine.walls import bottom_height, bottom_velocity, wall_omega
+from granpipe.engine.walls import wall_omega
 
 __all__ = ["GENERIC_KERNELS"]
 
@@ -548,14 +549,6 @@ def _renormalise(vec, sca, pair_dxi, npairs, num, total, counters):
 
 
 @njit
-def _bottom(fw, t):
-    """Height and velocity of the flat bottom at time ``t`` (0, 0 without one)."""
-    if fw[4] == 0.0:
-        return 0.0, 0.0
-    return bottom_height(fw, t), bottom_velocity(fw, t)
-
-
-@njit
 def _replica(
     law, n_steps, stride, tangent, dt, g, wd, fw, skin, st, out_lam, out_nlam, out_speed, info
 ):
@@ -786,7 +779,13 @@ def evaluate_pair_jvp(
     )  # fmt: skip
 
 
+def leaf_parameters(law):
+    """What the generic passes take of a law: the leaves' parameters at the pairs and at
+    the (left, right, bottom) flat walls."""
+    return (law.leaf_params(), law.wall_leaf_params())
+
+
 GENERIC_KERNELS = Kernels(
     run_serial, run_parallel, refresh_serial, set_tangent_serial, True, True,
-    profile_hook("generic_passes"),
+    profile_hook("generic_passes"), leaf_parameters,
 )  # fmt: skip

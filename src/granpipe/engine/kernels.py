@@ -1330,6 +1330,14 @@ def _time(clock, counters, dt):
 
 
 @njit
+def _bottom(fw, t):
+    """Height and velocity of the flat bottom at time ``t`` (0, 0 without one)."""
+    if fw[4] == 0.0:
+        return 0.0, 0.0
+    return bottom_height(fw, t), bottom_velocity(fw, t)
+
+
+@njit
 def _advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin):
     """Move the walls over the step that starts now; returns (walls moved far, z_b, v_b)."""
     t0 = _time(clock, counters, dt)
@@ -1783,11 +1791,7 @@ def _refresh_replica(law_id, tangent, rebuild, g, law, wd, fw, skin, st, dt, inf
         omega = wall_omega(wd, t)
         _update_wall_disks(vec, sca, walls, n_walls, wd, clock[THETA], omega)
         clock[LAST_OMEGA] = omega
-    zb = 0.0
-    vb = 0.0
-    if fw[4] != 0.0:
-        zb = bottom_height(fw, t)
-        vb = bottom_velocity(fw, t)
+    zb, vb = _bottom(fw, t)
     step = counters[STEP]
     _set_gravity(vec, sca, g[0], g[1])
     # a non-finite state is reported before anything else

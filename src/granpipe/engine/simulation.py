@@ -551,13 +551,8 @@ class Simulation:
         g = np.asarray(self.gravity, dtype=np.float64)
         wd = NO_WALL_DISKS if self.wall_disks is None else self.wall_disks.params()
         fw = NO_FLAT_WALLS if self.flat_walls is None else self.flat_walls.params()
-        from granpipe.engine.generic import GENERIC_KERNELS
-
-        if self._kernels() is GENERIC_KERNELS:
-            # the generic passes take the leaves' parameters, at the pairs and the walls
-            law = (self.law.leaf_params(), self.law.wall_leaf_params())
-        else:
-            law = self.law.params()
+        parameters = self._kernels().parameters
+        law = self.law.params() if parameters is None else parameters(self.law)
         return g, law, wd, fw
 
     def _kernels(self):
