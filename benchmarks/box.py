@@ -15,7 +15,9 @@ the largest bed centre-of-mass and disk upward speeds over the plate's top speed
 and the bulk |ψ6| when the measurement begins after 6 periods.
 
 Crystal: does the crystal start survive the start-up? For each preparation (row fit,
-start phase, ramp and transient length in periods, side-wall friction μ_w) and Γ, the
+start phase, ramp and transient length in periods, side-wall friction μ_w, the side
+walls shaken with the plate or still, the walls' torque) and Γ, the bed's largest
+centre-of-mass launch speed over Aω in the transient and the
 crystal check of docs/box.md (bulk |ψ6|, hexagonal fraction, dislocations = bulk disks
 with other than six Delaunay neighbours) at the start of the measurement and after
 ``--periods`` more periods.
@@ -36,7 +38,8 @@ from granpipe.box import model, preparation, protocol
 
 PHYSICS = dict(
     Lx=20.0, kappa_n=1e6, kappa_t=1e4, gamma_n=100.0, gamma_t=100.0, mu=0.6, mu_bottom=0.6,
-    mu_side_walls=0.6, omega=1.0, steps_per_contact=50.0,
+    mu_side_walls=0.6, omega=1.0, steps_per_contact=50.0, side_walls="shaken",
+    wall_torque="lever",
 )  # fmt: skip
 INIT = dict(
     crystal_rows="spanning", crystal_noise=1e-6, crystal_relax_time=1.0,
@@ -46,7 +49,6 @@ INIT = dict(
 
 def cost(n_ls=(10, 20), gamma=2.0, steps=30000):
     from granpipe.box.preparation import box_simulation, disk_arrays
-    from granpipe.box.protocol import _walls
 
     proto = dict(start_phase="sine", ramp_periods=0.0, transient_periods=0, phases_per_period=64)
     drive = model.drive_for(PHYSICS, proto, gamma)
@@ -56,7 +58,7 @@ def cost(n_ls=(10, 20), gamma=2.0, steps=30000):
     for n_l in n_ls:
         n = 20 * n_l
         prep = preparation.prepare(PHYSICS, INIT, n, "crystal", np.random.default_rng(1))
-        sim = box_simulation(PHYSICS, dt, _walls(PHYSICS, drive))
+        sim = box_simulation(PHYSICS, dt, model.flat_walls(PHYSICS, drive))
         radii, masses = disk_arrays(n)
         st = sim.new_state(prep.positions, radii, masses)
         sim.run(st, steps_per)  # one period of drive: the bed is bouncing
@@ -109,23 +111,26 @@ def hazards(gamma=1.5, n_l=10, transient=6, only=None):
 
 
 CRYSTAL_CASES = [
-    # rows, start_phase, ramp, transient, mu_w
-    ("spanning", "sine", 2.0, 6, 0.6),
-    ("spanning", "sine", 6.0, 10, 0.6),
-    ("spanning", "sine", 20.0, 24, 0.6),
-    ("inset", "sine", 6.0, 10, 0.6),
-    ("spanning", "bottom", 0.0, 6, 0.6),
-    ("spanning", "sine", 2.0, 6, 0.4),
-    ("spanning", "sine", 2.0, 6, 0.2),
-    ("spanning", "sine", 2.0, 6, 0.0),
+    # rows, start_phase, ramp, transient, mu_w, side walls, wall torque
+    ("spanning", "sine", 2.0, 6, 0.6, "shaken", "lever"),
+    ("spanning", "sine", 2.0, 6, 0.6, "shaken", "none"),
+    ("spanning", "sine", 2.0, 6, 0.6, "still", "none"),
+    ("spanning", "sine", 2.0, 6, 0.6, "still", "lever"),
+    ("spanning", "sine", 6.0, 10, 0.6, "still", "lever"),
+    ("spanning", "sine", 20.0, 24, 0.6, "still", "lever"),
+    ("inset", "sine", 6.0, 10, 0.6, "still", "lever"),
+    ("spanning", "bottom", 0.0, 6, 0.6, "still", "lever"),
+    ("spanning", "sine", 2.0, 6, 0.4, "still", "lever"),
+    ("spanning", "sine", 2.0, 6, 0.2, "still", "lever"),
+    ("spanning", "sine", 2.0, 6, 0.0, "still", "lever"),
 ]
 
 
 def _crystal_case(args):
     from granpipe.box import measures
 
-    (rows, phase, ramp, transient, mu_w), gamma, n_l, periods = args
-    phys = {**PHYSICS, "mu_side_walls": mu_w}
+    (rows, phase, ramp, transient, mu_w, side, torque), gamma, n_l, periods = args
+    phys = {**PHYSICS, "mu_side_walls": mu_w, "side_walls": side, "wall_torque": torque}
     init = {**INIT, "crystal_rows": rows, "crystal_relax_time": 2.0}
     prep = preparation.prepare(phys, init, 20 * n_l, "crystal", np.random.default_rng(3))
     proto = dict(
@@ -138,7 +143,10 @@ def _crystal_case(args):
     checks = [
         measures.crystal_check(res.cycle_positions[i].astype(float), 20.0) for i in (0, periods)
     ]
-    return (rows, phase, ramp, transient, mu_w, gamma, checks, res.wall_seconds)
+    aw = res.drive.amplitude * res.drive.omega
+    launch = float(res.transient["vz_cm"].max() / aw)
+    return (rows, phase, ramp, transient, mu_w, side, torque, gamma, checks, launch,
+            res.wall_seconds)  # fmt: skip
 
 
 def crystal(gammas=(1.2, 2.4), n_l=20, periods=4, jobs=1, only=None):
@@ -147,16 +155,17 @@ def crystal(gammas=(1.2, 2.4), n_l=20, periods=4, jobs=1, only=None):
     cases = CRYSTAL_CASES if not only else [CRYSTAL_CASES[i] for i in only]
     todo = [(c, g, n_l, periods) for g in gammas for c in cases]
     print(f"N_l = {n_l}; crystal check at measurement start and {periods} periods later")
-    print("rows     phase  ramp  tr  mu_w  Gamma | psi6  hex   disl intact | "
-          "psi6  hex   disl intact | wall s")  # fmt: skip
+    print("rows     phase  ramp  tr  mu_w sides  torque Gamma | v_cm/Aω | psi6  hex   disl "
+          "intact | psi6  hex   disl intact | wall s")  # fmt: skip
     with ProcessPoolExecutor(max_workers=jobs) as pool:
-        for rows, phase, ramp, tr, mu_w, g, checks, wall in pool.map(_crystal_case, todo):
+        for row in pool.map(_crystal_case, todo):
+            rows, phase, ramp, tr, mu_w, side, torque, g, checks, launch, wall = row
             cols = " | ".join(
                 f"{c.psi6:.3f} {c.hexagonal:.3f} {c.dislocations:4d} {str(c.intact):6s}"
                 for c in checks
             )
-            print(f"{rows:8s} {phase:6s} {ramp:4.0f} {tr:3d} {mu_w:5.2f} {g:5.2f} | {cols} | "
-                  f"{wall:5.0f}", flush=True)  # fmt: skip
+            print(f"{rows:8s} {phase:6s} {ramp:4.0f} {tr:3d} {mu_w:5.2f} {side:6s} {torque:6s}"
+                  f"{g:5.2f} | {launch:7.2f} | {cols} | {wall:5.0f}", flush=True)  # fmt: skip
 
 
 def _convergence_case(args):

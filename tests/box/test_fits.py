@@ -2,7 +2,7 @@
 and the threshold interpolation on a Γ grid.
 
 The analysis helpers check the generic regressions; here the glue: grouping by
-(init, N_l, mu_w), crystal points whose crystal broke left out, criteria and scales,
+(init, N_l, walls), crystal points whose crystal broke left out, criteria and scales,
 regions from the T_g* breakpoints handed to the Arrhenius fits, summary rows next to the
 paper's numbers, and intervals that cover the truth on noisy data.
 """
@@ -16,6 +16,7 @@ import pytest
 from granpipe.analysis.summary import summary_frame
 from granpipe.box import fits
 from granpipe.box.fits import threshold_crossing, threshold_from_flags
+from granpipe.box.layout import Walls
 from granpipe.box.measures import BOUNCING_THRESHOLD, CONVECTION_THRESHOLD
 
 DETECTION = {
@@ -32,6 +33,9 @@ K_BREAK = {"random": [3.3], "crystal": [2.0, 6.0]}
 SLOPES = {"random": [1.0, 2.5], "crystal": [0.5, 3.0, 1.2]}
 E_B = {"random": {"all": 7.0}, "crystal": {"A2": 30.0, "B": 7.0}}
 
+W6 = "mu_w=0.6,walls=shaken,torque=lever"
+W0 = "mu_w=0.0,walls=shaken,torque=lever"
+
 
 def _tg(init, K):
     """Continuous piecewise power law T_g*(K_m) through T_g*(1) = 0.01."""
@@ -42,7 +46,7 @@ def _tg(init, K):
     return np.exp(y)
 
 
-def _table(seed, mu_w=0.6):
+def _table(seed, mu_w=0.6, side_walls="shaken"):
     rng = np.random.default_rng(seed)
     rows = []
     for init in ("random", "crystal"):
@@ -63,8 +67,11 @@ def _table(seed, mu_w=0.6):
                 n_slips = rng.binomial(trials, p)
                 rows.append(
                     {
-                        "point": f"N_l={n_l},Gamma={float(g)!r},init={init},mu_w={mu_w!r}",
+                        "point": f"N_l={n_l},Gamma={float(g)!r},init={init},mu_w={mu_w!r},"
+                        f"walls={side_walls},torque=lever",
                         "mu_w": mu_w,
+                        "side_walls": side_walls,
+                        "wall_torque": "lever",
                         "N_l": n_l,
                         "N": 20 * n_l,
                         "Gamma": g,
@@ -119,7 +126,7 @@ def test_segmented_and_arrhenius_fits_cover_the_truth(seed):
     table = _table(seed)
     tfits = fits.temperature_fits(table, FITS)
     sfits = fits.slip_fits(table, tfits, FITS)
-    for (init, n_l, _mu_w), tf in tfits.items():
+    for (init, n_l, walls), tf in tfits.items():
         assert tf["regions"] == (["A", "B"] if init == "random" else ["A1", "A2", "B"])
         for true, est, (lo, hi) in zip(
             K_BREAK[init], tf["breakpoints_K_m"], tf["breakpoints_K_m_ci"], strict=True
@@ -127,7 +134,7 @@ def test_segmented_and_arrhenius_fits_cover_the_truth(seed):
             assert lo <= true <= hi, (init, n_l, true, est, lo, hi)
         for true, (lo, hi) in zip(SLOPES[init], tf["slope_ci"], strict=True):
             assert lo <= true <= hi
-        slip = sfits[(init, n_l, _mu_w)]
+        slip = sfits[(init, n_l, walls)]
         for region, true in E_B[init].items():
             af = slip[region]
             assert af.E_b_ci[0] <= true <= af.E_b_ci[1], (init, region, af.E_b, af.E_b_ci)
@@ -142,14 +149,14 @@ def test_summary_rows_carry_paper_values_and_fit_cleanly():
     tfits = fits.temperature_fits(table, FITS)
     sfits = fits.slip_fits(table, tfits, FITS)
     df = summary_frame(fits.summary_rows(table, ths, tfits, sfits)).set_index("quantity")
-    assert df.loc["K_m_break_1[N_l=20,init=random,mu_w=0.6]", "paper_value"] == 3.3
-    assert df.loc["E_b_A2[N_l=40,init=crystal,mu_w=0.6]", "paper_value"] == 130.0
-    assert df.loc["E_b_B[N_l=40,init=crystal,mu_w=0.6]", "paper_value"] == 7.0
-    assert df.loc["E_b_all[N_l=20,init=random,mu_w=0.6]", "paper_value"] == 7.0
-    assert df.loc["psi6_at_measurement_start[N_l=20,Gamma=0.8,init=crystal,mu_w=0.6]",
+    assert df.loc[f"K_m_break_1[N_l=20,init=random,{W6}]", "paper_value"] == 3.3
+    assert df.loc[f"E_b_A2[N_l=40,init=crystal,{W6}]", "paper_value"] == 130.0
+    assert df.loc[f"E_b_B[N_l=40,init=crystal,{W6}]", "paper_value"] == 7.0
+    assert df.loc[f"E_b_all[N_l=20,init=random,{W6}]", "paper_value"] == 7.0
+    assert df.loc[f"psi6_at_measurement_start[N_l=20,Gamma=0.8,init=crystal,{W6}]",
                   "value"] == 0.99  # fmt: skip
-    assert df.loc["crystal_intact_points[N_l=20,init=crystal,mu_w=0.6]", "value"] == 17
-    row = df.loc["Gamma_convection[N_l=20,init=crystal,mu_w=0.6]"]
+    assert df.loc[f"crystal_intact_points[N_l=20,init=crystal,{W6}]", "value"] == 17
+    row = df.loc[f"Gamma_convection[N_l=20,init=crystal,{W6}]"]
     assert row["ci_low"] == pytest.approx(2.6) and row["ci_high"] == pytest.approx(2.8)
     assert (df["study"] == "box").all()
     ds = fits.fits_datasets(table, ths, tfits, sfits)
@@ -182,7 +189,7 @@ def test_a_broken_crystal_point_is_left_out_of_the_crystal_fits():
         for region, af in sfits0[key].items():
             assert sfits[key][region].E_b == af.E_b or math.isnan(af.E_b)
     df = summary_frame(fits.summary_rows(table, ths, tfits, sfits)).set_index("quantity")
-    row = df.loc["crystal_intact_points[N_l=20,init=crystal,mu_w=0.6]"]
+    row = df.loc[f"crystal_intact_points[N_l=20,init=crystal,{W6}]"]
     assert (row["value"], row["n"]) == (16, 17)
     # without the flag the same point does change the crystal fits
     table.loc[broken, "crystal_intact"] = 1
@@ -190,20 +197,25 @@ def test_a_broken_crystal_point_is_left_out_of_the_crystal_fits():
     assert not ths1.equals(ths0)
 
 
-def test_wall_friction_values_are_separate_groups():
+def test_wall_settings_are_separate_groups():
     a, b = _table(6, mu_w=0.6), _table(7, mu_w=0.0)
-    both = pd.concat([a, b], ignore_index=True)
+    c = _table(8, mu_w=0.6, side_walls="still")
+    both = pd.concat([a, b, c], ignore_index=True)
     ths, tfits, sfits = _fit_all(both)
     ths_a, tfits_a, sfits_a = _fit_all(a)
-    assert set(tfits) == set(tfits_a) | {(i, n, 0.0) for i, n, _ in tfits_a}
-    sel = ths[ths["mu_w"] == 0.6].reset_index(drop=True)
+    other = {Walls(0.0, "shaken", "lever"), Walls(0.6, "still", "lever")}
+    assert set(tfits) == set(tfits_a) | {(i, n, w) for i, n, _ in tfits_a for w in other}
+    sel = ths[(ths["mu_w"] == 0.6) & (ths["side_walls"] == "shaken")].reset_index(drop=True)
     pd.testing.assert_frame_equal(sel, ths_a)
     for key, tf in tfits_a.items():
         assert np.array_equal(tfits[key]["breakpoints_K_m"], tf["breakpoints_K_m"])
     df = summary_frame(fits.summary_rows(both, ths, tfits, sfits)).set_index("quantity")
-    # the paper's numbers stand beside the rows of its own wall friction only
-    assert df.loc["E_b_all[N_l=20,init=random,mu_w=0.6]", "paper_value"] == 7.0
-    assert pd.isna(df.loc["E_b_all[N_l=20,init=random,mu_w=0.0]", "paper_value"])
+    # the paper's numbers stand beside the rows of its own walls only: Table I's friction
+    # with the whole box shaken
+    assert df.loc[f"E_b_all[N_l=20,init=random,{W6}]", "paper_value"] == 7.0
+    assert pd.isna(df.loc[f"E_b_all[N_l=20,init=random,{W0}]", "paper_value"])
+    still = "mu_w=0.6,walls=still,torque=lever"
+    assert pd.isna(df.loc[f"E_b_all[N_l=20,init=random,{still}]", "paper_value"])
 
 
 def test_exact_on_linear_measure_any_grid():

@@ -61,8 +61,9 @@ def _part(part, frames, z_tr, z_plate, gap, tg):
             "positions": v(("frame", "particle", "xy"), frames.astype(np.float32)),
         },
         attrs={
-            "point": "N_l=20,Gamma=2.0,init=crystal,mu_w=0.6", "N_l": 20,
-            "N": frames.shape[1], "Gamma": 2.0, "init": "crystal", "mu_w": 0.6, "replica": 0,
+            "point": "N_l=20,Gamma=2.0,init=crystal,mu_w=0.6,walls=shaken,torque=lever",
+            "N_l": 20, "N": frames.shape[1], "Gamma": 2.0, "init": "crystal", "mu_w": 0.6,
+            "side_walls": "shaken", "wall_torque": "lever", "replica": 0,
             "part": part, "seed": "1",
             "amplitude": 2.0, "omega": 1.0, "wall_seconds": 1.0, "steps": 1000,
         },

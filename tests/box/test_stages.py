@@ -13,6 +13,9 @@ from granpipe.analysis.summary import COLUMNS, read_summary
 from granpipe.box import layout, stages
 from granpipe.io import RunFileError, config_from_attrs, read_dataset
 
+W6 = layout.Walls(0.6, "shaken", "lever")
+W0 = layout.Walls(0.0, "shaken", "lever")
+
 
 @pytest.fixture(scope="module")
 def pipeline(tmp_path_factory):
@@ -23,22 +26,22 @@ def pipeline(tmp_path_factory):
     sec["grid"] = {**SECTION["grid"], "Gamma": [0.7, 1.4, 2.0], "mu_side_walls": [0.6, 0.0]}
     sec["protocol"] = {**SECTION["protocol"], "ramp_periods": 0.5, "transient_periods": 1}
     root = tmp_path_factory.mktemp("box")
-    for n_l, init, mu_w in layout.init_states(sec):
-        out = root / layout.init_file(n_l, init, mu_w, 0)
-        stages.init_stage(layout.init_params(sec, mu_w), n_l, init, 0, out, log=None)
-    for n_l, gamma, init, mu_w in layout.points(sec):
+    for n_l, init, walls in layout.init_states(sec):
+        out = root / layout.init_file(n_l, init, walls, 0)
+        stages.init_stage(layout.init_params(sec, walls), n_l, init, 0, out, log=None)
+    for n_l, gamma, init, walls in layout.points(sec):
         for part in range(layout.n_parts(sec)):
-            prev = root / layout.run_file(n_l, gamma, init, mu_w, 0, part - 1) if part else None
+            prev = root / layout.run_file(n_l, gamma, init, walls, 0, part - 1) if part else None
             stages.runs_stage(
-                layout.runs_params(sec, part, mu_w), n_l, gamma, init, 0, part,
-                root / layout.init_file(n_l, init, mu_w, 0),
-                root / layout.run_file(n_l, gamma, init, mu_w, 0, part), previous=prev,
+                layout.runs_params(sec, part, walls), n_l, gamma, init, 0, part,
+                root / layout.init_file(n_l, init, walls, 0),
+                root / layout.run_file(n_l, gamma, init, walls, 0, part), previous=prev,
                 log=None,
             )  # fmt: skip
         stages.ensemble_stage(
             layout.ensemble_params(sec),
-            [root / f for f in layout.point_run_files(sec, n_l, gamma, init, mu_w)],
-            root / layout.ensemble_file(n_l, gamma, init, mu_w),
+            [root / f for f in layout.point_run_files(sec, n_l, gamma, init, walls)],
+            root / layout.ensemble_file(n_l, gamma, init, walls),
             log=None,
         )
     ens = [root / f for f in layout.ensemble_files(sec)]
@@ -61,9 +64,9 @@ def test_every_file_of_the_layout_exists(pipeline):
 
 def test_run_files_chain_and_carry_their_config(pipeline):
     sec, root = pipeline
-    p0 = read_dataset(root / layout.run_file(5, 2.0, "crystal", 0.6, 0, 0))
-    p1 = read_dataset(root / layout.run_file(5, 2.0, "crystal", 0.6, 0, 1))
-    assert config_from_attrs(p1) == layout.runs_params(sec, 1, 0.6)
+    p0 = read_dataset(root / layout.run_file(5, 2.0, "crystal", W6, 0, 0))
+    p1 = read_dataset(root / layout.run_file(5, 2.0, "crystal", W6, 0, 1))
+    assert config_from_attrs(p1) == layout.runs_params(sec, 1, W6)
     assert list(p0["period"].values) == [0] and list(p1["period"].values) == [1]
     np.testing.assert_array_equal(p0["positions"].values[-1], p1["positions"].values[0])
     np.testing.assert_array_equal(p0["tracer_index"].values, p1["tracer_index"].values)
@@ -79,8 +82,8 @@ def test_run_files_chain_and_carry_their_config(pipeline):
 
 def test_ensemble_flags_and_fits_summary(pipeline):
     sec, root = pipeline
-    calm = read_dataset(root / layout.ensemble_file(5, 0.7, "crystal", 0.6))
-    wild = read_dataset(root / layout.ensemble_file(5, 2.0, "crystal", 0.6))
+    calm = read_dataset(root / layout.ensemble_file(5, 0.7, "crystal", W6))
+    wild = read_dataset(root / layout.ensemble_file(5, 2.0, "crystal", W6))
     assert float(wild.detachment_fraction) > float(calm.detachment_fraction)
     # μ = 0.6 side walls stir the bed even below Γ = 1 (docs/box.md, hazard (iii)); the driven bed
     # is still several times hotter (4.8x and 12x seen for two engine versions).
@@ -92,7 +95,7 @@ def test_ensemble_flags_and_fits_summary(pipeline):
     value = summary.set_index("quantity")["value"]
     for init in ("crystal", "random"):
         for mu_w in ("0.6", "0.0"):
-            group = f"[N_l=5,init={init},mu_w={mu_w}]"
+            group = f"[N_l=5,init={init},mu_w={mu_w},walls=shaken,torque=lever]"
             # a crystal group is fitted only from points whose crystal was intact (in this
             # bed of five rows the bulk window is often empty: nothing certifies a crystal)
             fitted = init == "random" or value[f"crystal_intact_points{group}"] > 0
@@ -111,39 +114,39 @@ def test_ensemble_flags_and_fits_summary(pipeline):
 
 def test_wall_friction_points_share_random_numbers_but_not_physics(pipeline):
     sec, root = pipeline
-    a = read_dataset(root / layout.init_file(5, "random", 0.6, 0))
-    b = read_dataset(root / layout.init_file(5, "random", 0.0, 0))
+    a = read_dataset(root / layout.init_file(5, "random", W6, 0))
+    b = read_dataset(root / layout.init_file(5, "random", W0, 0))
     # the same placement (seed), settled between different walls
     assert a.attrs["seed"] == b.attrs["seed"] and a.attrs["mu_w"] != b.attrs["mu_w"]
     assert not np.array_equal(a["positions"].values, b["positions"].values)
-    ra = read_dataset(root / layout.run_file(5, 2.0, "random", 0.6, 0, 0))
-    rb = read_dataset(root / layout.run_file(5, 2.0, "random", 0.0, 0, 0))
+    ra = read_dataset(root / layout.run_file(5, 2.0, "random", W6, 0, 0))
+    rb = read_dataset(root / layout.run_file(5, 2.0, "random", W0, 0, 0))
     assert config_from_attrs(ra)["physics"]["mu_side_walls"] == 0.6
     assert config_from_attrs(rb)["physics"]["mu_side_walls"] == 0.0
 
 
 def test_stages_refuse_files_that_are_not_their_inputs(pipeline, tmp_path):
     sec, root = pipeline
-    other_walls = root / layout.init_file(5, "crystal", 0.0, 0)
+    other_walls = root / layout.init_file(5, "crystal", W0, 0)
     with pytest.raises(RunFileError, match="state"):
         stages.runs_stage(
-            layout.runs_params(sec, 0, 0.6), 5, 2.0, "crystal", 0, 0, other_walls,
+            layout.runs_params(sec, 0, W6), 5, 2.0, "crystal", 0, 0, other_walls,
             tmp_path / "run.nc", log=None,
         )  # fmt: skip
-    wrong_part = root / layout.run_file(5, 2.0, "crystal", 0.6, 0, 1)
+    wrong_part = root / layout.run_file(5, 2.0, "crystal", W6, 0, 1)
     with pytest.raises(RunFileError, match="part"):
         stages.runs_stage(
-            layout.runs_params(sec, 1, 0.6), 5, 2.0, "crystal", 0, 1,
-            root / layout.init_file(5, "crystal", 0.6, 0), tmp_path / "run.nc",
+            layout.runs_params(sec, 1, W6), 5, 2.0, "crystal", 0, 1,
+            root / layout.init_file(5, "crystal", W6, 0), tmp_path / "run.nc",
             previous=wrong_part, log=None,
         )  # fmt: skip
     mixed = [
-        root / layout.run_file(5, 2.0, "crystal", 0.6, 0, 0),
-        root / layout.run_file(5, 1.4, "crystal", 0.6, 0, 1),
+        root / layout.run_file(5, 2.0, "crystal", W6, 0, 0),
+        root / layout.run_file(5, 1.4, "crystal", W6, 0, 1),
     ]
     with pytest.raises(RunFileError, match="point"):
         stages.ensemble_stage(layout.ensemble_params(sec), mixed, tmp_path / "e.nc", log=None)
-    twice = [root / layout.run_file(5, 2.0, "crystal", 0.6, 0, 0)] * 2
+    twice = [root / layout.run_file(5, 2.0, "crystal", W6, 0, 0)] * 2
     with pytest.raises(RunFileError, match="twice"):
         stages.ensemble_stage(layout.ensemble_params(sec), twice, tmp_path / "e.nc", log=None)
     assert not (tmp_path / "run.nc").exists() and not (tmp_path / "e.nc").exists()

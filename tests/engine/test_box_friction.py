@@ -84,3 +84,62 @@ def test_disk_rolls_down_incline_without_slipping():
     slip = state.velocities[0, 0] + lever(state) * state.spins[0]
     assert abs(slip) < 1e-5 * abs(state.velocities[0, 0])
     assert np.sign(state.spins[0]) == -1  # rolling to +x turns clockwise
+
+
+# --------------------------------------------- a disk held against a moving side wall
+G_X, G_Y = 1.0, 0.1  # pressed against the left wall by m G_X, pulled down by m G_Y
+DRIVE = 0.2  # wall amplitude A (omega = 1): wall acceleration up to 0.2 g
+
+
+def _against_side_wall(shaken, torque, passes, inertia=None):
+    """A disk pressed against the left wall of a box whose plate (far below) moves as
+    ``z_b = -50 - A cos t`` (at rest at t = 0), run for half a period, t = pi: the wall
+    rises by 2 A. The friction a sticking contact needs, m (a_wall + G_Y) <= 0.3 m, stays
+    below mu m G_X = 0.6 m."""
+    walls = FlatWalls(
+        x_left=0.0, bottom=True, z0=-50.0, amplitude=DRIVE, omega=1.0, phase=-math.pi / 2,
+        shaken_sides=shaken, wall_torque=torque,
+    )  # fmt: skip
+    sim = Simulation(BOX_LAW, dt=DT, flat_walls=walls, gravity=(-G_X, -G_Y), passes=passes)
+    kw = {} if inertia is None else {"inertia": [inertia]}
+    state = sim.new_state([[A - G_X / BOX_LAW.kappa_n, 0.0]], [A], [1.0], **kw)
+    sim.run(state, round(math.pi / DT))
+    return state
+
+
+@pytest.mark.parametrize("passes", ["law", "generic"])
+def test_a_shaken_side_wall_carries_a_sticking_disk_and_a_still_one_holds_it(passes):
+    """A disk that cannot turn sticks to the wall: it rises with a shaken wall by the
+    wall's 2 A (less the elastic shear, ~1e-5), and stays put at a still one, which
+    holds the weight m G_Y < mu m G_X."""
+    up = _against_side_wall(True, True, passes, inertia=math.inf)
+    assert up.positions[0, 1] == pytest.approx(2 * DRIVE, abs=1e-4)
+    assert up.velocities[0, 1] == pytest.approx(0.0, abs=1e-4)  # the wall turns at t = pi
+    held = _against_side_wall(False, True, passes, inertia=math.inf)
+    assert abs(held.positions[0, 1]) < 1e-4
+
+
+@pytest.mark.parametrize("passes", ["law", "generic"])
+def test_a_free_disk_rolls_on_a_shaken_wall_and_without_wall_torque_is_carried(passes):
+    """A free disk (I = m a²/2) rolls without slipping on the moving wall: from
+    m y'' = f - m G_Y, I w' = -f a and y'' + a w' = a_wall, y'' = (a_wall - 2 G_Y)/3, so
+    y(pi) = (2 A - G_Y pi²)/3. Without wall torque (the sigma_j = 0 reading of Eq. A4) the
+    disk never turns, the contact sticks, and the disk rises with the wall by 2 A."""
+    rolled = _against_side_wall(True, True, passes)
+    assert rolled.positions[0, 1] == pytest.approx((2 * DRIVE - G_Y * math.pi**2) / 3, rel=1e-3)
+    assert rolled.spins[0] != 0.0
+    carried = _against_side_wall(True, False, passes)
+    assert carried.spins[0] == 0.0
+    assert carried.positions[0, 1] == pytest.approx(2 * DRIVE, abs=1e-4)
+
+
+def test_without_wall_torque_a_spinning_disk_on_the_floor_keeps_its_spin():
+    """The floor's friction still acts on the disk's centre (it is pushed along), but
+    exerts no torque: the spin stays w0 exactly, where with a lever it falls to w0/3."""
+    w0 = 10.0
+    floor = FlatWalls(bottom=True, z0=0.0, wall_torque=False)
+    sim = Simulation(BOX_LAW, dt=DT, flat_walls=floor)
+    state = sim.new_state([[0.0, A + 0.01]], [A], [1.0], spins=[w0])
+    sim.run(state, 20_000)
+    assert state.spins[0] == w0
+    assert state.velocities[0, 0] < -0.1  # the sliding contact drives the disk along -x

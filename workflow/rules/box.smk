@@ -1,8 +1,10 @@
 # box study (docs/box.md): stages init -> runs -> ensemble -> fits -> figures.
 # Rules only call `granpipe box <stage>`; params carry the exact config subset each stage
 # depends on (granpipe.box.layout.*_params), so a config edit reruns exactly what it
-# touches: physics/init -> everything (grid.mu_side_walls: the points of each value); protocol -> runs onwards (measured_periods only adds
-# or drops whole parts); detection/slips/order -> ensemble onwards; fits -> fits, figures.
+# touches: physics/init -> everything (grid.mu_side_walls, physics.side_walls and
+# physics.wall_torque: the points of each value; the side walls' drive is not part of the
+# prepared states); protocol -> runs onwards (measured_periods only adds or drops whole
+# parts); detection/slips/order -> ensemble onwards; fits -> fits, figures.
 # Point lists come from granpipe.box.layout, the same functions `granpipe status` uses.
 
 from granpipe.box import layout as box_layout
@@ -16,20 +18,23 @@ if "box" in config:
         box_nl=r"\d+",
         box_gamma=r"[0-9.]+(e[-+]?[0-9]+)?",
         box_init=r"crystal|random",
-        box_muw=r"[0-9.]+(e[-+]?[0-9]+)?",
+        box_walls=r"mu_w=[0-9.]+(e[-+]?[0-9]+)?,walls=(shaken|still),torque=(lever|none)",
+        box_state_walls=r"mu_w=[0-9.]+(e[-+]?[0-9]+)?,torque=(lever|none)",
         box_rep=r"\d{4}",
         box_part=r"\d{3}",
 
     rule box_init:
         """Crystal (relaxed lattice) or random (placement, fall, settle) initial state."""
         output:
-            out("box", "init", "N_l={box_nl},init={box_init},mu_w={box_muw}", "replica_{box_rep}.nc"),
+            out("box", "init", "N_l={box_nl},init={box_init},{box_state_walls}", "replica_{box_rep}.nc"),
         params:
-            json=lambda w: as_json(box_layout.init_params(BOX, float(w.box_muw))),
+            json=lambda w: as_json(
+                box_layout.init_params(BOX, box_layout.Walls.parse_state(w.box_state_walls))
+            ),
         conda:
             "../envs/granpipe.yaml"
         log:
-            log_path("box", "init", "N_l={box_nl},init={box_init},mu_w={box_muw}", "replica_{box_rep}.log"),
+            log_path("box", "init", "N_l={box_nl},init={box_init},{box_state_walls}", "replica_{box_rep}.log"),
         threads: 1
         resources:
             runtime=lambda w: box_layout.sim_minutes(BOX, int(w.box_nl), 0),
@@ -53,12 +58,14 @@ if "box" in config:
             out(
                 "box",
                 "runs",
-                "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_muw}",
+                "N_l={box_nl},Gamma={box_gamma},init={box_init},{box_walls}",
                 "replica_{box_rep}.part_{box_part}.nc",
             ),
         params:
             json=lambda w: as_json(
-                box_layout.runs_params(BOX, int(w.box_part), float(w.box_muw))
+                box_layout.runs_params(
+                    BOX, int(w.box_part), box_layout.Walls.parse(w.box_walls)
+                )
             ),
             previous=lambda w, input: (
                 f"--previous {input.previous}" if "previous" in input.keys() else ""
@@ -69,7 +76,7 @@ if "box" in config:
             log_path(
                 "box",
                 "runs",
-                "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_muw}",
+                "N_l={box_nl},Gamma={box_gamma},init={box_init},{box_walls}",
                 "replica_{box_rep}.part_{box_part}.log",
             ),
         threads: 1
@@ -90,17 +97,21 @@ if "box" in config:
             runs=lambda w: [
                 out("box", f)
                 for f in box_layout.point_run_files(
-                    BOX, int(w.box_nl), float(w.box_gamma), w.box_init, float(w.box_muw)
+                    BOX,
+                    int(w.box_nl),
+                    float(w.box_gamma),
+                    w.box_init,
+                    box_layout.Walls.parse(w.box_walls),
                 )
             ],
         output:
-            out("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_muw}.nc"),
+            out("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init},{box_walls}.nc"),
         params:
             json=lambda w: as_json(box_layout.ensemble_params(BOX)),
         conda:
             "../envs/granpipe.yaml"
         log:
-            log_path("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_muw}.log"),
+            log_path("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init},{box_walls}.log"),
         threads: 1
         resources:
             runtime=10,

@@ -50,6 +50,7 @@ import xarray as xr
 from ..analysis import regression
 from ..analysis.summary import summary_row
 from ..io import read_dataset
+from .layout import Walls
 
 __all__ = [
     "points_table",
@@ -253,8 +254,9 @@ ORDER_ROWS = {
 
 
 def points_table(files: Sequence[str | Path]) -> pd.DataFrame:
-    """One row per ensemble file: N_l, N, Gamma, K_m, init, mu_w, the measures, the cost
-    and ``used`` (False for a crystal point whose crystal broke before measurement)."""
+    """One row per ensemble file: N_l, N, Gamma, K_m, init, the walls (mu_w, side_walls,
+    wall_torque), the measures, the cost and ``used`` (False for a crystal point whose
+    crystal broke before measurement)."""
     rows = []
     for f in files:
         ds = read_dataset(f)
@@ -266,6 +268,8 @@ def points_table(files: Sequence[str | Path]) -> pd.DataFrame:
             "K_m": float(ds.attrs["K_m"]),
             "init": str(ds.attrs["init"]),
             "mu_w": float(ds.attrs["mu_w"]),
+            "side_walls": str(ds.attrs["side_walls"]),
+            "wall_torque": str(ds.attrs["wall_torque"]),
             "replicas": int(ds.attrs["replicas"]),
             "measured_periods": int(ds.attrs["measured_periods"]),
             "wall_seconds": float(ds.attrs["wall_seconds"]),
@@ -277,7 +281,7 @@ def points_table(files: Sequence[str | Path]) -> pd.DataFrame:
         rows.append(row)
     table = pd.DataFrame(rows)
     table["used"] = used_mask(table)
-    order = ["init", "mu_w", "N_l", "Gamma"]
+    order = ["init", *WALL_COLUMNS, "N_l", "Gamma"]
     return table.sort_values(order, kind="stable").reset_index(drop=True)
 
 
@@ -287,13 +291,19 @@ def used_mask(table: pd.DataFrame) -> pd.Series:
     return (table["init"] != "crystal") | (table["crystal_intact"] == 1)
 
 
+WALL_COLUMNS = ("mu_w", "side_walls", "wall_torque")
+"""Columns of the points table that make a point's :class:`~granpipe.box.layout.Walls`."""
+
+
 def _groups(table: pd.DataFrame, used_only: bool = True):
-    """(init, N_l, mu_w, points sorted by Γ) per group; without the points left out of the
+    """(init, N_l, walls, points sorted by Γ) per group; without the points left out of the
     fits unless ``used_only`` is False."""
-    for (init, mu_w, n_l), g in table.groupby(["init", "mu_w", "N_l"], sort=True):
+    for (init, mu_w, side, torque, n_l), g in table.groupby(
+        ["init", *WALL_COLUMNS, "N_l"], sort=True
+    ):
         g = g[used_mask(g)] if used_only else g
         if len(g):
-            yield init, int(n_l), float(mu_w), g.sort_values("Gamma")
+            yield init, int(n_l), Walls(float(mu_w), side, torque), g.sort_values("Gamma")
 
 
 CRITERIA = {
@@ -307,7 +317,7 @@ CRITERIA = {
 def thresholds_table(table: pd.DataFrame, detection: Mapping) -> pd.DataFrame:
     """Thresholds in Γ per (init, N_l, criterion), with the bracketing grid points."""
     rows = []
-    for init, n_l, mu_w, g in _groups(table):
+    for init, n_l, walls, g in _groups(table):
         for name, (col, key, scale) in CRITERIA.items():
             crit = float(detection[key])
             values = g[col].to_numpy()
@@ -319,7 +329,7 @@ def thresholds_table(table: pd.DataFrame, detection: Mapping) -> pd.DataFrame:
                 {
                     "init": init,
                     "N_l": n_l,
-                    "mu_w": mu_w,
+                    **walls._asdict(),
                     "criterion": name,
                     "measure": col,
                     "level": crit,
@@ -336,10 +346,10 @@ def thresholds_table(table: pd.DataFrame, detection: Mapping) -> pd.DataFrame:
 
 
 def temperature_fits(table: pd.DataFrame, fits_cfg: Mapping) -> dict:
-    """Segmented fits of ln T_g* vs ln K_m per group: {(init, N_l, mu_w): dict}."""
+    """Segmented fits of ln T_g* vs ln K_m per group: {(init, N_l, walls): dict}."""
     out = {}
     level = float(fits_cfg["confidence"])
-    for init, n_l, mu_w, g in _groups(table):
+    for init, n_l, walls, g in _groups(table):
         k = int(fits_cfg[f"breakpoints_{init}"])
         ok = np.isfinite(g["T_g"]) & (g["T_g"] > 0)
         g = g[ok]
@@ -354,10 +364,10 @@ def temperature_fits(table: pd.DataFrame, fits_cfg: Mapping) -> dict:
                 level=level,
             )
         except (ValueError, np.linalg.LinAlgError) as exc:
-            out[(init, n_l, mu_w)] = {"error": str(exc), "n_points": int(len(g))}
+            out[(init, n_l, walls)] = {"error": str(exc), "n_points": int(len(g))}
             continue
         bp, bp_ci = fit.exp_breakpoints()
-        out[(init, n_l, mu_w)] = {
+        out[(init, n_l, walls)] = {
             "fit": fit,
             "n_breakpoints": k,
             "breakpoints_K_m": np.atleast_1d(bp),
@@ -374,10 +384,10 @@ def temperature_fits(table: pd.DataFrame, fits_cfg: Mapping) -> dict:
 
 
 def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
-    """Arrhenius fits per group: {(init, N_l, mu_w): {region: ArrheniusFit}} incl. "all"."""
+    """Arrhenius fits per group: {(init, N_l, walls): {region: ArrheniusFit}} incl. "all"."""
     level = float(fits_cfg["confidence"])
     out = {}
-    for init, n_l, mu_w, g in _groups(table):
+    for init, n_l, walls, g in _groups(table):
         kw = {
             "p_s": g["p_s"].to_numpy(),
             "n_slips": g["n_slips"].to_numpy(),
@@ -397,7 +407,7 @@ def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
             fits["all"] = regression.arrhenius_fit(K, level=level, **kw)
         except ValueError:
             pass
-        tf = tfits.get((init, n_l, mu_w)) or {}
+        tf = tfits.get((init, n_l, walls)) or {}
         if "fit" in tf and tf["n_breakpoints"] > 0:
             try:
                 fits.update(
@@ -407,17 +417,27 @@ def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
                 )
             except ValueError:
                 pass
-        out[(init, n_l, mu_w)] = fits
+        out[(init, n_l, walls)] = fits
     return out
 
 
-def _fmt_q(name: str, init: str, n_l: int, mu_w: float) -> str:
-    return f"{name}[N_l={n_l},init={init},mu_w={mu_w!r}]"
+def _fmt_q(name: str, init: str, n_l: int, walls: Walls) -> str:
+    return f"{name}[N_l={n_l},init={init},{walls.text}]"
 
 
-def _paper(value, mu_w: float):
-    """The paper's value on rows of its own side-wall friction, None on the others."""
-    return value if math.isclose(mu_w, PAPER_MU_W) else None
+def _paper(value, walls: Walls):
+    """The paper's value on rows of its own walls (Table I's side-wall friction, the whole
+    box shaken), None on the others."""
+    return value if is_paper_walls(walls) else None
+
+
+def is_paper_walls(walls: Walls) -> bool:
+    """Table I's side-wall friction with the whole box driven (Sec. II), either torque."""
+    return math.isclose(walls.mu_w, PAPER_MU_W) and walls.side_walls == "shaken"
+
+
+def _walls_of(row) -> Walls:
+    return Walls(float(row.mu_w), str(row.side_walls), str(row.wall_torque))
 
 
 def summary_rows(
@@ -430,10 +450,10 @@ def summary_rows(
             rows.append(
                 summary_row("box", f"{name}[{r.point}]", getattr(r, col), "1", n=r.replicas)
             )
-    for init, n_l, mu_w, g in _groups(table, used_only=False):
+    for init, n_l, walls, g in _groups(table, used_only=False):
         if init == "crystal":
             rows.append(
-                summary_row("box", _fmt_q("crystal_intact_points", init, n_l, mu_w),
+                summary_row("box", _fmt_q("crystal_intact_points", init, n_l, walls),
                             int(used_mask(g).sum()), "1", n=len(g))
             )  # fmt: skip
     for r in ths.itertuples(index=False):
@@ -443,9 +463,9 @@ def summary_rows(
         paper = PAPER["Gamma_bouncing"] if r.criterion in ("bouncing", "detachment") else None
         if r.criterion == "convection" and r.init == "random":
             paper = math.sqrt(PAPER["K_m_break_random"])
-        q = _fmt_q(f"Gamma_{r.criterion}", r.init, r.N_l, r.mu_w)
-        rows.append(th.summary_row("box", q, _paper(paper, r.mu_w), "1", r.n_points))
-    for (init, n_l, mu_w), tf in tfits.items():
+        q = _fmt_q(f"Gamma_{r.criterion}", r.init, r.N_l, _walls_of(r))
+        rows.append(th.summary_row("box", q, _paper(paper, _walls_of(r)), "1", r.n_points))
+    for (init, n_l, walls), tf in tfits.items():
         if "fit" not in tf:
             continue
         for i, name in enumerate(["K_m_break_1", "K_m_break_2"][: tf["n_breakpoints"]]):
@@ -454,14 +474,14 @@ def summary_rows(
             rows.append(
                 summary_row(
                     "box",
-                    _fmt_q(name, init, n_l, mu_w),
+                    _fmt_q(name, init, n_l, walls),
                     tf["breakpoints_K_m"][i],
                     "1",
                     fit_error=tf["breakpoints_K_m_se"][i],
                     ci_low=lo,
                     ci_high=hi,
                     n=tf["n_points"],
-                    paper_value=_paper(paper, mu_w),
+                    paper_value=_paper(paper, walls),
                 )  # fmt: skip
             )
         for i, region in enumerate(tf["regions"]):
@@ -469,7 +489,7 @@ def summary_rows(
             rows.append(
                 summary_row(
                     "box",
-                    _fmt_q(f"T_g_slope_{region}", init, n_l, mu_w),
+                    _fmt_q(f"T_g_slope_{region}", init, n_l, walls),
                     tf["slopes"][i],
                     "1",
                     fit_error=tf["slope_se"][i],
@@ -478,17 +498,24 @@ def summary_rows(
                     n=tf["n_points"],
                 )  # fmt: skip
             )
-    for (init, n_l, mu_w), fits in sfits.items():
+    for (init, n_l, walls), fits in sfits.items():
         for region, af in fits.items():
-            paper = _paper(PAPER.get(f"E_b_{init}_{region}"), mu_w)
-            rows.append(af.summary_row("box", _fmt_q(f"E_b_{region}", init, n_l, mu_w), paper))
-    for init, n_l, mu_w, g in _groups(table, used_only=False):
+            paper = _paper(PAPER.get(f"E_b_{init}_{region}"), walls)
+            rows.append(af.summary_row("box", _fmt_q(f"E_b_{region}", init, n_l, walls), paper))
+    for init, n_l, walls, g in _groups(table, used_only=False):
         cost = float(1e9 * g["wall_seconds"].sum() / max((g["steps"] * g["N"]).sum(), 1))
         rows.append(
-            summary_row("box", _fmt_q("cost_ns_per_particle_step", init, n_l, mu_w), cost, "ns",
+            summary_row("box", _fmt_q("cost_ns_per_particle_step", init, n_l, walls), cost, "ns",
                         n=len(g))
         )  # fmt: skip
     return rows
+
+
+_TEXT_COLUMNS = {
+    "init": "initial state",
+    "side_walls": "drive of the side walls",
+    "wall_torque": "torque of the walls' friction",
+}
 
 
 def fits_datasets(
@@ -503,11 +530,14 @@ def fits_datasets(
         {
             c: ("point", table[c].to_numpy(dtype=float), lab("1", c))
             for c in table.columns
-            if c not in ("point", "init")
+            if c not in ("point", *_TEXT_COLUMNS)
         },
         coords={
             "point": ("point", table["point"].to_numpy(dtype=str), lab("1", "parameter point")),
-            "init": ("point", table["init"].to_numpy(dtype=str), lab("1", "initial state")),
+            **{
+                c: ("point", table[c].to_numpy(dtype=str), lab("1", long))
+                for c, long in _TEXT_COLUMNS.items()
+            },
         },
     )
     for c, u in (("s_c", "sigma"), ("s_b", "sigma"), ("T_g", "m*g*sigma")):
@@ -534,43 +564,43 @@ def fits_datasets(
             "threshold": ("threshold", np.arange(len(ths)), lab("1", "threshold index")),
             **{
                 f"threshold_{c}": ("threshold", ths[c].to_numpy(dtype=str), lab("1", c))
-                for c in ("init", "criterion", "status")
+                for c in ("init", "criterion", "status", "side_walls", "wall_torque")
             },
         },
     )
     th["threshold_N_l"].attrs["units"] = "1/sigma"
     phase = xr.merge([pts, th])
     trows = []
-    for (init, n_l, mu_w), tf in tfits.items():
+    for (init, n_l, walls), tf in tfits.items():
         if "fit" not in tf:
             continue
         for i in range(tf["n_breakpoints"]):
             trows.append(
-                (init, n_l, mu_w, "breakpoint", i, tf["breakpoints_K_m"][i],
+                (init, n_l, *walls, "breakpoint", i, tf["breakpoints_K_m"][i],
                  tf["breakpoints_K_m_se"][i], *tf["breakpoints_K_m_ci"][i])
             )  # fmt: skip
         for i in range(len(tf["slopes"])):
             trows.append(
-                (init, n_l, mu_w, f"slope_{tf['regions'][i]}", i, tf["slopes"][i],
+                (init, n_l, *walls, f"slope_{tf['regions'][i]}", i, tf["slopes"][i],
                  tf["slope_se"][i], *tf["slope_ci"][i])
             )  # fmt: skip
         trows.append(
-            (init, n_l, mu_w, "intercept", 0, tf["fit"].intercept, math.nan, math.nan, math.nan)
+            (init, n_l, *walls, "intercept", 0, tf["fit"].intercept, math.nan, math.nan, math.nan)
         )
     temp = _rows_dataset(trows, "temperature fit of ln T_g* on ln K_m")
     srows = []
-    for (init, n_l, mu_w), fits in sfits.items():
+    for (init, n_l, walls), fits in sfits.items():
         for region, af in fits.items():
-            srows.append((init, n_l, mu_w, f"E_b_{region}", 0, af.E_b, af.E_b_se, *af.E_b_ci))
+            srows.append((init, n_l, *walls, f"E_b_{region}", 0, af.E_b, af.E_b_se, *af.E_b_ci))
             srows.append(
-                (init, n_l, mu_w, f"log_A_{region}", 0, af.log_A, af.log_A_se, np.nan, np.nan)
+                (init, n_l, *walls, f"log_A_{region}", 0, af.log_A, af.log_A_se, np.nan, np.nan)
             )
     slips = _rows_dataset(srows, "Arrhenius fit p_s = A exp(-E_b/K_m)")
     return {"phase_diagram": phase, "temperature": temp, "slips": slips}
 
 
 def _rows_dataset(rows, what: str) -> xr.Dataset:
-    cols = ["init", "N_l", "mu_w", "name", "index", "value", "se", "ci_low", "ci_high"]
+    cols = ["init", "N_l", *WALL_COLUMNS, "name", "index", "value", "se", "ci_low", "ci_high"]
     df = pd.DataFrame(rows, columns=cols)
 
     def lab(units, long_name):
@@ -587,7 +617,7 @@ def _rows_dataset(rows, what: str) -> xr.Dataset:
         },
         coords={
             "row": ("row", np.arange(len(df)), lab("1", "row")),
-            "init": ("row", df["init"].to_numpy(str), lab("1", "initial state")),
+            **{c: ("row", df[c].to_numpy(str), lab("1", _TEXT_COLUMNS[c])) for c in _TEXT_COLUMNS},
             "name": ("row", df["name"].to_numpy(str), lab("1", "fitted quantity")),
             "index": ("row", df["index"].to_numpy(int), lab("1", "index within the quantity")),
         },

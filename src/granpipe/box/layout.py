@@ -3,19 +3,26 @@
 One source of truth for ``workflow/rules/box.smk`` (its target lists and wildcards) and
 ``granpipe status`` (:func:`run_files`). Paths are relative to ``results/<scale>/box/``.
 
-A *parameter point* is ``(N_l, Gamma, init, mu_w)``, named
-``N_l=20,Gamma=2.2,init=crystal,mu_w=0.6`` (:func:`point_name`); ``mu_w`` is the side
-walls' Coulomb coefficient (``grid.mu_side_walls``, one point per value). An *initial
-state* is ``(N_l, init, mu_w)``, named ``N_l=20,init=crystal,mu_w=0.6``; every Γ of one
-``(N_l, init, mu_w, replica)`` starts from the same prepared state, so that thresholds in
-Γ compare like with like. A run of ``measured_periods`` periods is split in consecutive
-*parts* of ``periods_per_part`` periods (part 0 also carries the ramp and the transient);
-part ``p`` continues from the final state stored in part ``p - 1``.
+A *parameter point* is ``(N_l, Gamma, init, walls)``, named
+``N_l=20,Gamma=2.2,init=crystal,mu_w=0.6,walls=shaken,torque=lever`` (:func:`point_name`).
+``walls`` (:class:`Walls`) is the side walls' Coulomb coefficient (``grid.mu_side_walls``),
+their drive (``physics.side_walls``: shaken with the plate or still) and whether wall
+friction exerts a torque (``physics.wall_torque``); each combination is its own set of
+points. An *initial state* is ``(N_l, init, walls)`` without the drive of the side walls
+(the plate rests during the preparation, so a shaken and a still side wall are the same
+wall there), named ``N_l=20,init=crystal,mu_w=0.6,torque=lever``; every Γ and both wall
+drives of one ``(N_l, init, mu_w, torque, replica)`` start from the same prepared state,
+so that thresholds compare like with like. A run of ``measured_periods`` periods is split
+in consecutive *parts* of ``periods_per_part`` periods (part 0 also carries the ramp and
+the transient); part ``p`` continues from the final state stored in part ``p - 1``.
 
-    >>> point_name(20, 2.2, "crystal", 0.6)
-    'N_l=20,Gamma=2.2,init=crystal,mu_w=0.6'
-    >>> parse_point("N_l=20,Gamma=2.2,init=crystal,mu_w=0.6")
-    (20, 2.2, 'crystal', 0.6)
+    >>> w = Walls(0.6, "shaken", "lever")
+    >>> point_name(20, 2.2, "crystal", w)
+    'N_l=20,Gamma=2.2,init=crystal,mu_w=0.6,walls=shaken,torque=lever'
+    >>> parse_point(point_name(20, 2.2, "crystal", w)) == (20, 2.2, "crystal", w)
+    True
+    >>> state_name(20, "crystal", w)
+    'N_l=20,init=crystal,mu_w=0.6,torque=lever'
 """
 
 from __future__ import annotations
@@ -23,10 +30,15 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
+from typing import NamedTuple
 
 __all__ = [
     "check",
     "INITS",
+    "SIDE_WALLS",
+    "WALL_TORQUES",
+    "Walls",
+    "wall_settings",
     "gamma_text",
     "point_name",
     "physics_for",
@@ -62,6 +74,18 @@ __all__ = [
 ]
 
 INITS = ("crystal", "random")
+SIDE_WALLS = ("shaken", "still")
+"""``physics.side_walls``: the side walls move with the plate (the whole box is driven,
+the paper's Sec. II), or stand still while the plate moves (docs/box.md, "Which walls
+move")."""
+WALL_TORQUES = ("lever", "none")
+"""``physics.wall_torque``: a wall's tangential force exerts the torque of its lever on the
+disk, or none (the ``σ_j = 0`` reading of Eq. A4 for a flat wall)."""
+
+_NUM = r"[0-9.eE+-]+"
+_WALLS_RE = re.compile(
+    rf"mu_w=({_NUM}),walls=({'|'.join(SIDE_WALLS)}),torque=({'|'.join(WALL_TORQUES)})"
+)
 
 MAX_SIMULATION_JOBS = 10_000
 """The most init + runs jobs a box config may ask for: Snakemake plans ~6 ms per job, so
@@ -96,36 +120,90 @@ def check(section: Mapping) -> None:
         )
 
 
-POINT_RE = re.compile(r"^N_l=(\d+),Gamma=([0-9.eE+-]+),init=(crystal|random),mu_w=([0-9.eE+-]+)$")
-
-
 def gamma_text(gamma: float) -> str:
     """Shortest text that reads back as the same float (``repr``): 2.2 -> '2.2', 1 -> '1.0'."""
     return repr(float(gamma))
 
 
-def point_name(n_l: int, gamma: float, init: str, mu_w: float) -> str:
-    """Name of a parameter point, e.g. ``N_l=20,Gamma=2.2,init=crystal,mu_w=0.6``."""
+class Walls(NamedTuple):
+    """The walls of a set of points: side-wall friction ``mu_w``, the side walls' drive
+    (:data:`SIDE_WALLS`) and the wall torque (:data:`WALL_TORQUES`)."""
+
+    mu_w: float
+    side_walls: str = "shaken"
+    wall_torque: str = "lever"
+
+    @property
+    def text(self) -> str:
+        """``mu_w=0.6,walls=shaken,torque=lever`` (a point name's wall part)."""
+        return f"mu_w={gamma_text(self.mu_w)},walls={self.side_walls},torque={self.wall_torque}"
+
+    @property
+    def state_text(self) -> str:
+        """``mu_w=0.6,torque=lever``: what of the walls a prepared state depends on."""
+        return f"mu_w={gamma_text(self.mu_w)},torque={self.wall_torque}"
+
+    @classmethod
+    def parse(cls, text: str) -> Walls:
+        """Inverse of :attr:`text`."""
+        m = _WALLS_RE.fullmatch(text)
+        if not m:
+            raise ValueError(
+                f"not a box wall setting: {text!r} (expected mu_w=..,walls=..,torque=..)"
+            )
+        return cls(float(m.group(1)), m.group(2), m.group(3))
+
+    @classmethod
+    def parse_state(cls, text: str) -> Walls:
+        """Inverse of :attr:`state_text` (the side walls' drive, which a prepared state
+        does not depend on, set to the default)."""
+        mu_w, sep, torque = text.partition(",torque=")
+        if not sep or not mu_w.startswith("mu_w="):
+            raise ValueError(f"not a box state's walls: {text!r} (expected mu_w=..,torque=..)")
+        walls = cls(float(mu_w.removeprefix("mu_w=")), "shaken", torque)
+        walls.check()
+        return walls
+
+    def check(self) -> None:
+        if self.side_walls not in SIDE_WALLS:
+            raise ValueError(f"side_walls must be one of {SIDE_WALLS}, got {self.side_walls!r}")
+        if self.wall_torque not in WALL_TORQUES:
+            raise ValueError(f"wall_torque must be one of {WALL_TORQUES}, got {self.wall_torque!r}")
+
+
+POINT_RE = re.compile(rf"^N_l=(\d+),Gamma=({_NUM}),init=(crystal|random),({_WALLS_RE.pattern})$")
+
+
+def point_name(n_l: int, gamma: float, init: str, walls: Walls) -> str:
+    """Name of a parameter point, e.g. ``N_l=20,Gamma=2.2,init=crystal,mu_w=0.6,walls=shaken,
+    torque=lever``."""
     if init not in INITS:
         raise ValueError(f"init must be one of {INITS}, got {init!r}")
-    return f"N_l={int(n_l)},Gamma={gamma_text(gamma)},init={init},mu_w={gamma_text(mu_w)}"
+    walls.check()
+    return f"N_l={int(n_l)},Gamma={gamma_text(gamma)},init={init},{walls.text}"
 
 
-def state_name(n_l: int, init: str, mu_w: float) -> str:
-    """Name of a prepared initial state, e.g. ``N_l=20,init=random,mu_w=0.6``."""
+def state_name(n_l: int, init: str, walls: Walls) -> str:
+    """Name of a prepared initial state, e.g. ``N_l=20,init=random,mu_w=0.6,torque=lever``."""
     if init not in INITS:
         raise ValueError(f"init must be one of {INITS}, got {init!r}")
-    return f"N_l={int(n_l)},init={init},mu_w={gamma_text(mu_w)}"
+    walls.check()
+    return f"N_l={int(n_l)},init={init},{walls.state_text}"
 
 
-def parse_point(name: str) -> tuple[int, float, str, float]:
-    """Inverse of :func:`point_name`: ``(N_l, Gamma, init, mu_w)``."""
+def parse_point(name: str) -> tuple[int, float, str, Walls]:
+    """Inverse of :func:`point_name`: ``(N_l, Gamma, init, walls)``."""
     m = POINT_RE.match(name)
     if not m:
         raise ValueError(
-            f"not a box point name: {name!r} (expected N_l=..,Gamma=..,init=..,mu_w=..)"
+            f"not a box point name: {name!r} "
+            "(expected N_l=..,Gamma=..,init=..,mu_w=..,walls=..,torque=..)"
         )
-    return int(m.group(1)), float(m.group(2)), m.group(3), float(m.group(4))
+    return int(m.group(1)), float(m.group(2)), m.group(3), Walls.parse(m.group(4))
+
+
+def _as_list(value) -> list:
+    return list(value) if isinstance(value, list | tuple) else [value]
 
 
 def wall_frictions(section: Mapping) -> list[float]:
@@ -133,30 +211,60 @@ def wall_frictions(section: Mapping) -> list[float]:
     return [float(m) for m in section["grid"]["mu_side_walls"]]
 
 
-def physics_for(section: Mapping, mu_w: float) -> dict:
-    """``box.physics`` of the points with side-wall friction ``mu_w`` (key
-    ``mu_side_walls``, what :func:`granpipe.box.model.box_law` reads)."""
-    return {**dict(section["physics"]), "mu_side_walls": float(mu_w)}
-
-
-def init_states(section: Mapping) -> list[tuple[int, str, float]]:
-    """``(N_l, init, mu_w)`` of the grid, in config order."""
-    grid = section["grid"]
+def wall_settings(section: Mapping) -> list[Walls]:
+    """Every wall setting of the grid: ``grid.mu_side_walls`` × ``physics.side_walls`` ×
+    ``physics.wall_torque`` (each a value or a list), in config order."""
+    physics = section["physics"]
     return [
-        (int(n_l), init, mu_w)
+        Walls(mu_w, side, torque)
         for mu_w in wall_frictions(section)
-        for n_l in grid["N_l"]
-        for init in grid["inits"]
+        for side in _as_list(physics.get("side_walls", "shaken"))
+        for torque in _as_list(physics.get("wall_torque", "lever"))
     ]
 
 
-def points(section: Mapping) -> list[tuple[int, float, str, float]]:
-    """``(N_l, Gamma, init, mu_w)`` of every parameter point the grid asks for, in config
+def physics_for(section: Mapping, walls: Walls) -> dict:
+    """``box.physics`` of the points with wall setting ``walls``: ``mu_side_walls``,
+    ``side_walls`` and ``wall_torque`` single values (what :func:`granpipe.box.model.box_law`
+    and :func:`granpipe.box.model.flat_walls` read)."""
+    return {
+        **dict(section["physics"]),
+        "mu_side_walls": float(walls.mu_w),
+        "side_walls": walls.side_walls,
+        "wall_torque": walls.wall_torque,
+    }
+
+
+def preparation_physics(physics: Mapping) -> dict:
+    """The physics a prepared state depends on: all but the side walls' drive (the plate
+    rests during the preparation)."""
+    return {k: v for k, v in physics.items() if k != "side_walls"}
+
+
+def init_states(section: Mapping) -> list[tuple[int, str, Walls]]:
+    """``(N_l, init, walls)`` of the grid's prepared states (one per shared state: the
+    first wall setting of each ``(mu_w, wall_torque)``), in config order."""
+    seen, out = set(), []
+    for walls in wall_settings(section):
+        for n_l in section["grid"]["N_l"]:
+            for init in section["grid"]["inits"]:
+                key = state_name(n_l, init, walls)
+                if key not in seen:
+                    seen.add(key)
+                    out.append((int(n_l), init, walls))
+    return out
+
+
+def points(section: Mapping) -> list[tuple[int, float, str, Walls]]:
+    """``(N_l, Gamma, init, walls)`` of every parameter point the grid asks for, in config
     order."""
+    grid = section["grid"]
     return [
-        (n_l, float(g), init, mu_w)
-        for n_l, init, mu_w in init_states(section)
-        for g in section["grid"]["Gamma"]
+        (int(n_l), float(g), init, walls)
+        for walls in wall_settings(section)
+        for n_l in grid["N_l"]
+        for init in grid["inits"]
+        for g in grid["Gamma"]
     ]
 
 
@@ -179,17 +287,17 @@ def replicas(section: Mapping) -> range:
     return range(int(section["grid"]["replicas"]))
 
 
-def init_file(n_l: int, init: str, mu_w: float, replica: int) -> str:
-    return f"init/{state_name(n_l, init, mu_w)}/replica_{int(replica):04d}.nc"
+def init_file(n_l: int, init: str, walls: Walls, replica: int) -> str:
+    return f"init/{state_name(n_l, init, walls)}/replica_{int(replica):04d}.nc"
 
 
-def run_file(n_l: int, gamma: float, init: str, mu_w: float, replica: int, part: int) -> str:
-    point = point_name(n_l, gamma, init, mu_w)
+def run_file(n_l: int, gamma: float, init: str, walls: Walls, replica: int, part: int) -> str:
+    point = point_name(n_l, gamma, init, walls)
     return f"runs/{point}/replica_{int(replica):04d}.part_{int(part):03d}.nc"
 
 
-def ensemble_file(n_l: int, gamma: float, init: str, mu_w: float) -> str:
-    return f"ensemble/{point_name(n_l, gamma, init, mu_w)}.nc"
+def ensemble_file(n_l: int, gamma: float, init: str, walls: Walls) -> str:
+    return f"ensemble/{point_name(n_l, gamma, init, walls)}.nc"
 
 
 def init_files(section: Mapping) -> list[str]:
@@ -202,10 +310,10 @@ def run_files(section: Mapping) -> list[str]:
     return [f for pt in points(section) for f in point_run_files(section, *pt)]
 
 
-def point_run_files(section: Mapping, n_l: int, gamma: float, init: str, mu_w: float) -> list[str]:
+def point_run_files(section: Mapping, n_l: int, gamma: float, init: str, walls: Walls) -> list[str]:
     """The run files of one point (all replicas, all parts)."""
     return [
-        run_file(n_l, gamma, init, mu_w, r, p)
+        run_file(n_l, gamma, init, walls, r, p)
         for r in replicas(section)
         for p in range(n_parts(section))
     ]
@@ -238,13 +346,16 @@ def figure_files(kind: str = "png") -> list[str]:
 
 
 # ---------------------------------------------------- config subsets of each stage
-def init_params(section: Mapping, mu_w: float) -> dict:
-    """Config subset of the init stage: physics (with the points' ``mu_side_walls``) and
-    preparation."""
-    return {"physics": physics_for(section, mu_w), "init": dict(section["init"])}
+def init_params(section: Mapping, walls: Walls) -> dict:
+    """Config subset of the init stage: the physics a prepared state depends on
+    (:func:`preparation_physics` of the points' physics) and the preparation."""
+    return {
+        "physics": preparation_physics(physics_for(section, walls)),
+        "init": dict(section["init"]),
+    }
 
 
-def runs_params(section: Mapping, part: int, mu_w: float) -> dict:
+def runs_params(section: Mapping, part: int, walls: Walls) -> dict:
     """The exact config subset a run part depends on (what the rule passes as --params).
 
     ``measured_periods`` is replaced by the measured periods of this part, so that raising
@@ -253,7 +364,8 @@ def runs_params(section: Mapping, part: int, mu_w: float) -> dict:
     proto = {k: v for k, v in section["protocol"].items() if k != "measured_periods"}
     periods = part_periods(section, part)
     return {
-        **init_params(section, mu_w),
+        "physics": physics_for(section, walls),
+        "init": dict(section["init"]),
         "protocol": proto,
         "part_periods": [periods.start, periods.stop],
     }
@@ -315,15 +427,15 @@ def sim_minutes(section: Mapping, n_l: int, part: int) -> int:
 
 def run_inputs(section: Mapping, wildcards) -> dict[str, str]:
     """Inputs of a run part (relative paths): the initial state, and the previous part."""
-    n_l, init, mu_w, rep, part = (
+    n_l, init, walls, rep, part = (
         int(wildcards.box_nl),
         wildcards.box_init,
-        float(wildcards.box_muw),
+        Walls.parse(wildcards.box_walls),
         int(wildcards.box_rep),
         int(wildcards.box_part),
     )
-    files = {"init": init_file(n_l, init, mu_w, rep)}
+    files = {"init": init_file(n_l, init, walls, rep)}
     if part > 0:
         gamma = float(wildcards.box_gamma)
-        files["previous"] = run_file(n_l, gamma, init, mu_w, rep, part - 1)
+        files["previous"] = run_file(n_l, gamma, init, walls, rep, part - 1)
     return files

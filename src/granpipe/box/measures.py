@@ -881,6 +881,8 @@ def point_dataset(
             "K_m": float(a["Gamma"]) ** 2,
             "init": a["init"],
             "mu_w": float(a["mu_w"]),
+            "side_walls": str(a["side_walls"]),
+            "wall_torque": str(a["wall_torque"]),
             "replicas": R,
             "measured_periods": n_periods // max(R, 1),
             "wall_seconds": float(np.sum(per_rep["wall_seconds"])),

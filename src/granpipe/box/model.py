@@ -20,6 +20,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from ..engine import FlatWalls
 from ..engine.laws import BoxLaw
 
 __all__ = [
@@ -33,6 +34,7 @@ __all__ = [
     "box_law",
     "Drive",
     "drive_for",
+    "flat_walls",
 ]
 
 DIAMETER = 1.0
@@ -127,6 +129,32 @@ def drive_for(physics: Mapping, protocol: Mapping, gamma: float) -> Drive:
     # z_b(0) = z0 + A r(0) sin φ = 0 (r(0) = 0 with a ramp)
     z0 = 0.0 if ramp_time > 0 else -amplitude * math.sin(phase)
     return Drive(amplitude, omega, phase, ramp_time, z0)
+
+
+def flat_walls(physics: Mapping, drive: Drive | None = None) -> FlatWalls:
+    """The box's walls: side walls at ``x = 0`` and ``Lx``, the plate moving with ``drive``
+    (at rest at ``z = 0`` without one). ``physics.side_walls = shaken`` moves the side
+    walls with the plate (the whole box is driven, Sec. II), ``still`` keeps them still;
+    ``physics.wall_torque = none`` takes the torque of the walls' friction away (the
+    ``σ_j = 0`` reading of Eq. A4). docs/box.md, "Which walls move"."""
+    common = {
+        "x_left": 0.0,
+        "x_right": float(physics["Lx"]),
+        "bottom": True,
+        "shaken_sides": physics.get("side_walls", "shaken") == "shaken",
+        "wall_torque": physics.get("wall_torque", "lever") == "lever",
+    }
+    if drive is None:
+        return FlatWalls(**common, z0=0.0)
+    return FlatWalls(
+        **common,
+        z0=drive.z0,
+        amplitude=drive.amplitude,
+        omega=drive.omega,
+        phase=drive.phase,
+        ramp_start=0.0,
+        ramp_time=drive.ramp_time,
+    )
 
 
 def kinetic_energy(v, w) -> float:

@@ -62,7 +62,6 @@ __all__ = [
     "prepare",
     "box_simulation",
     "disk_arrays",
-    "resting_walls",
     "bulk_psi6",
     "crystal_row_lengths",
     "crystal_positions",
@@ -242,11 +241,6 @@ def box_simulation(physics: Mapping, dt: float, walls: FlatWalls) -> Simulation:
     )
 
 
-def resting_walls(physics: Mapping) -> FlatWalls:
-    """Side walls at 0 and Lx, plate at rest at z = 0."""
-    return FlatWalls(x_left=0.0, x_right=float(physics["Lx"]), bottom=True, z0=0.0)
-
-
 def _settle(sim, state, n: int, max_time: float, ke_per_disk: float | None, log, label):
     """Run in chunks of 0.25 t0 until KE/N < ke_per_disk (if given) or max_time passes."""
     chunk = max(1, round(0.25 / sim.dt))
@@ -324,7 +318,7 @@ def prepare(
     else:
         raise ValueError(f"kind must be 'crystal' or 'random', got {kind!r}")
     radii, masses = disk_arrays(n)
-    sim = box_simulation(physics, model.nominal_dt(physics), resting_walls(physics))
+    sim = box_simulation(physics, model.nominal_dt(physics), model.flat_walls(physics))
     start = _time.perf_counter()
     state = sim.new_state(pos, radii, masses)
     if max_time > 0:

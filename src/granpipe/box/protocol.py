@@ -135,20 +135,6 @@ class PartResult:
         return 1e9 * self.wall_seconds / max(self.steps * n, 1)
 
 
-def _walls(physics: Mapping, drive: model.Drive) -> FlatWalls:
-    return FlatWalls(
-        x_left=0.0,
-        x_right=float(physics["Lx"]),
-        bottom=True,
-        z0=drive.z0,
-        amplitude=drive.amplitude,
-        omega=drive.omega,
-        phase=drive.phase,
-        ramp_start=0.0,
-        ramp_time=drive.ramp_time,
-    )
-
-
 def _sample(state, walls: FlatWalls, t: float):
     """(z_b, positions view, velocities view, gap, plate contacts, T_g, z_cm, vz_cm)."""
     pos = state.positions
@@ -203,7 +189,7 @@ def run_part(
     steps_per, dt = model.steps_per_period(physics, n_k)
     chunk = steps_per // n_k
     drive = model.drive_for(physics, protocol, gamma)
-    walls = _walls(physics, drive)
+    walls = model.flat_walls(physics, drive)
     sim = box_simulation(physics, dt, walls)
     n_tr = int(protocol["transient_periods"])
     # measurement start: drive phase 2π n_tr, i.e. t_m = (2π n_tr - φ)/ω = whole steps

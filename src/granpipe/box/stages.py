@@ -1,15 +1,16 @@
 """The box study's stages as file-to-file functions (the CLI calls these; rules call the CLI).
 
-    init      prepared state of (N_l, init, mu_w, replica)  -> init/<state>/replica_r.nc
+    init      prepared state of (N_l, init, walls, replica) -> init/<state>/replica_r.nc
     runs      one part of one point and replica              -> runs/<point>/replica_r.part_p.nc
     ensemble  all runs of a point -> detection, T_g, p_s, ψ  -> ensemble/<point>.nc
     fits      all points -> thresholds, segmented T_g*, E_b  -> fits/*.nc, fits/summary.csv
     figures   Figures 1, 3, 4, 5 and 6 (μ_w)                  -> figures/fig<k>_<name>.{png,pdf}
 
 Seeds: a replica's stream is ``replica_rng("box", seed_physics, replica)`` with
-``seed_physics = {physics without mu_side_walls, init, N_l, init kind}``
-(:func:`seed_physics`): the side-wall friction values of one replica share their random
-numbers (lattice noise, placement), so that they compare like with like. The run itself
+``seed_physics = {physics without the walls' keys, init, N_l, init kind}``
+(:func:`seed_physics`): the wall settings of one replica (side-wall friction, drive and
+torque) share their random numbers (lattice noise, placement), so that they compare like
+with like. The run itself
 is deterministic given its initial state. Blow-ups are re-raised with the study, point,
 replica and seed.
 """
@@ -48,15 +49,29 @@ def log_to_stderr(text: str) -> None:
     print(f"[{_time.strftime('%H:%M:%S')}] {text}", file=sys.stderr, flush=True)
 
 
+WALL_KEYS = ("mu_side_walls", "side_walls", "wall_torque")
+"""Physics keys of a point's wall setting (:class:`granpipe.box.layout.Walls`), left out of
+the seed."""
+
+
 def seed_physics(params: Mapping, n_l: int, kind: str) -> dict:
-    """The mapping that defines a replica's random stream (physics but the side walls'
-    friction, and preparation)."""
+    """The mapping that defines a replica's random stream (physics but the walls' keys,
+    and preparation)."""
     return {
-        "physics": {k: v for k, v in params["physics"].items() if k != "mu_side_walls"},
+        "physics": {k: v for k, v in params["physics"].items() if k not in WALL_KEYS},
         "init": dict(params["init"]),
         "N_l": int(n_l),
         "init_kind": kind,
     }
+
+
+def walls_of(physics: Mapping) -> layout.Walls:
+    """The wall setting of a point's (or a prepared state's) physics."""
+    return layout.Walls(
+        float(physics["mu_side_walls"]),
+        str(physics.get("side_walls", "shaken")),
+        str(physics.get("wall_torque", "lever")),
+    )
 
 
 def _var(dims, data, units, long_name, **attrs):
@@ -83,8 +98,8 @@ def init_stage(
     sp = seed_physics(params, n_l, kind)
     seed = replica_seed("box", sp, replica)
     rng = replica_rng("box", sp, replica)
-    mu_w = float(physics["mu_side_walls"])
-    state = layout.state_name(n_l, kind, mu_w)
+    walls = walls_of(physics)
+    state = layout.state_name(n_l, kind, walls)
     label = f"init {state} replica {replica}"
     if log:
         log(f"{label}: N = {n}, seed = {seed}")
@@ -127,7 +142,8 @@ def init_stage(
             "N_l": int(n_l),
             "N": n,
             "init": kind,
-            "mu_w": mu_w,
+            "mu_w": walls.mu_w,
+            "wall_torque": walls.wall_torque,
             "replica": int(replica),
             "seed": str(seed),
             "settled": int(prep.settled),
@@ -175,14 +191,16 @@ def runs_stage(
     physics, proto = params["physics"], params["protocol"]
     p0, p1 = (int(v) for v in params["part_periods"])
     periods = range(p0, p1)
-    mu_w = float(physics["mu_side_walls"])
-    point = layout.point_name(n_l, gamma, kind, mu_w)
+    walls = walls_of(physics)
+    point = layout.point_name(n_l, gamma, kind, walls)
     init_ds = read_dataset(init_file)
-    # the prepared state of this point's (N_l, init, mu_w, replica), from this physics
+    # the prepared state of this point's (N_l, init, walls, replica), from this physics
     expect_attrs(
         init_ds, init_file, study="box", stage="init",
-        state=layout.state_name(n_l, kind, mu_w), replica=int(replica),
-        config_hash=config_hash({"physics": physics, "init": params["init"]}),
+        state=layout.state_name(n_l, kind, walls), replica=int(replica),
+        config_hash=config_hash(
+            {"physics": layout.preparation_physics(physics), "init": params["init"]}
+        ),
     )  # fmt: skip
     seed = int(init_ds.attrs["seed"])
     label = f"runs {point} replica {replica} part {part}"
@@ -281,7 +299,9 @@ def runs_stage(
             "Gamma": float(gamma),
             "K_m": float(gamma) ** 2,
             "init": kind,
-            "mu_w": mu_w,
+            "mu_w": walls.mu_w,
+            "side_walls": walls.side_walls,
+            "wall_torque": walls.wall_torque,
             "replica": int(replica),
             "part": int(part),
             "seed": str(seed),
@@ -365,13 +385,28 @@ def fit_n_l(fits_cfg: Mapping, n_ls) -> int:
     return int(want) if want is not None and int(want) in n_ls else n_ls[-1]
 
 
-def figure_mu_w(values) -> float:
-    """The side-wall friction Figures 1 and 3–5 draw: Table I's 0.6 if the grid has it,
-    else the smallest."""
-    from .fits import PAPER_MU_W
+def figure_walls(points) -> layout.Walls:
+    """The walls Figures 1 and 3–5 draw: Table I's side-wall friction with the whole box
+    shaken (lever torque first) if the grid has it, else the first setting of the table
+    (``points``: the points table, columns mu_w, side_walls, wall_torque)."""
+    from .fits import WALL_COLUMNS, is_paper_walls
 
-    vals = sorted({float(v) for v in values})
-    return PAPER_MU_W if any(math.isclose(v, PAPER_MU_W) for v in vals) else vals[0]
+    settings = [
+        layout.Walls(float(m), str(s), str(t))
+        for m, s, t in points[list(WALL_COLUMNS)].drop_duplicates().itertuples(index=False)
+    ]
+    paper = [w for w in settings if is_paper_walls(w)]
+    paper.sort(key=lambda w: layout.WALL_TORQUES.index(w.wall_torque))
+    return (paper or settings)[0]
+
+
+def select_walls(df, walls: layout.Walls):
+    """The rows of a fits table (columns mu_w, side_walls, wall_torque) with ``walls``."""
+    return df[
+        np.isclose(df["mu_w"].to_numpy(float), walls.mu_w)
+        & (df["side_walls"] == walls.side_walls)
+        & (df["wall_torque"] == walls.wall_torque)
+    ]
 
 
 def fits_stage(
@@ -417,18 +452,18 @@ def load_fits(fits_dir: str | Path):
     phase = read_dataset(fits_dir / "phase_diagram.nc")
     pcols = [d for d in phase.data_vars if phase[d].dims == ("point",)]
     points = pd.DataFrame({c: phase[c].values for c in pcols})
-    points["init"] = phase["init"].values.astype(str)
-    points["point"] = phase["point"].values.astype(str)
+    for c in ("init", "point", "side_walls", "wall_torque"):
+        points[c] = phase[c].values.astype(str)
     tcols = [d for d in phase.data_vars if phase[d].dims == ("threshold",)]
     ths = pd.DataFrame({c.removeprefix("threshold_"): phase[c].values for c in tcols})
-    for c in ("init", "criterion", "status"):
+    for c in ("init", "criterion", "status", "side_walls", "wall_torque"):
         ths[c] = phase[f"threshold_{c}"].values.astype(str)
 
     def rows(name):
         ds = read_dataset(fits_dir / f"{name}.nc")
         cols = ("value", "se", "ci_low", "ci_high", "N_l", "mu_w")
         df = pd.DataFrame({c: ds[c].values for c in cols})
-        for c in ("init", "name"):
+        for c in ("init", "name", "side_walls", "wall_torque"):
             df[c] = ds[c].values.astype(str)
         df["index"] = ds["index"].values.astype(int)
         df["N_l"] = df["N_l"].astype(int)
@@ -446,8 +481,8 @@ def figures_stage(
     out_dir: str | Path,
     log: Callable[[str], None] | None = log_to_stderr,
 ) -> list[Path]:
-    """Figures 1, 3, 4, 5 at one side-wall friction (:func:`figure_mu_w`) and Fig. 6, the
-    thresholds against it (PNG and PDF)."""
+    """Figures 1, 3, 4, 5 at one wall setting (:func:`figure_walls`) and Fig. 6, the
+    thresholds against the walls (PNG and PDF)."""
     from ..figures import box as figs
     from ..figures import save_figure
     from .fits import PAPER
@@ -455,10 +490,8 @@ def figures_stage(
     out_dir = Path(out_dir)
     points, ths, temp, slips = load_fits(fits_dir)
     all_ths = ths
-    mu_w = figure_mu_w(points["mu_w"])
-    points, ths, temp, slips = (
-        df[np.isclose(df["mu_w"].to_numpy(float), mu_w)] for df in (points, ths, temp, slips)
-    )
+    walls = figure_walls(points)
+    points, ths, temp, slips = (select_walls(df, walls) for df in (points, ths, temp, slips))
     n_fit = fit_n_l(params["fits"], points["N_l"])
     written = []
     # Fig. 1: initial states of the largest N_l (replica 0), then the same starts at the
@@ -468,7 +501,11 @@ def figures_stage(
     for f in init_files:
         ds = read_dataset(f)
         a = ds.attrs
-        if int(a["N_l"]) == n_big and int(a["replica"]) == 0 and float(a["mu_w"]) == mu_w:
+        if (
+            int(a["N_l"]) == n_big
+            and int(a["replica"]) == 0
+            and a["state"] == layout.state_name(n_big, a["init"], walls)
+        ):
             inits[a["init"]] = ds
     panels = []
     for kind in ("crystal", "random"):
@@ -476,7 +513,7 @@ def figures_stage(
             ds = inits[kind]
             panels.append(
                 {
-                    "title": f"{kind} start, N_l = {n_big}, μ_w = {mu_w:g}\nbulk |ψ6| = "
+                    "title": f"{kind} start, N_l = {n_big}, μ_w = {walls.mu_w:g}\nbulk |ψ6| = "
                     f"{float(ds.attrs['bulk_psi6']):.3f}",
                     "positions": ds["positions"].values,
                     "order": ds["order"].values,

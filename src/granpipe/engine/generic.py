@@ -113,7 +113,7 @@ from granpipe.engine.layout import (
     XI_LEFT,
 )
 from granpipe.engine.neighbours import carry_history
-from granpipe.engine.walls import wall_omega
+from granpipe.engine.walls import wall_omega, wall_torque_factor, wall_velocity
 
 __all__ = ["GENERIC_KERNELS"]
 
@@ -279,7 +279,7 @@ def _wall_pass(walls, vec, sca, ivec, fw, zb, vb, dt, mode, overlap_frac):
             contacts[i] += 1
             lev_i = ai - 0.5 * overlap
             vx = vel[i, 0]
-            vy = vel[i, 1] - (vb if w == 2 else 0.0)
+            vy = vel[i, 1] - wall_velocity(fw, w, vb)
             m_i = 1.0 / inv_mass[i]
             fx, fy, ti, _tj, xi_new, f_n, f_t, piece = pair_force(
                 law, nx, ny, -overlap, lev_i, 0.0, vx, vy, spin[i], 0.0, m_i, xi_w[i], dt
@@ -287,7 +287,7 @@ def _wall_pass(walls, vec, sca, ivec, fw, zb, vb, dt, mode, overlap_frac):
             if forward:
                 frc[i, 0] += fx
                 frc[i, 1] += fy
-                trq[i] += ti
+                trq[i] += ti * wall_torque_factor(fw)
                 xi_w[i] = xi_new
                 piece_w[i] = 1 + piece
             if tangent:
@@ -298,7 +298,7 @@ def _wall_pass(walls, vec, sca, ivec, fw, zb, vb, dt, mode, overlap_frac):
                 )  # fmt: skip
                 tf[i, 0] += dfx
                 tf[i, 1] += dfy
-                tt[i] += dti
+                tt[i] += dti * wall_torque_factor(fw)
                 dxi_w[i] = dxi_new
     return ncon, -1, -1
 

@@ -165,7 +165,13 @@ from granpipe.engine.simd import (
     tangent8_last,
     touch_bits4,
 )
-from granpipe.engine.walls import bottom_height, bottom_velocity, wall_omega
+from granpipe.engine.walls import (
+    bottom_height,
+    bottom_velocity,
+    wall_omega,
+    wall_torque_factor,
+    wall_velocity,
+)
 
 # renormalise the tangent vector when |du|² leaves [2^-400, 2^400]; by powers of two (exact)
 _RENORM_HI = 2.0**400
@@ -1233,7 +1239,7 @@ def _flat_walls(law_id, vec, sca, ivec, law, fw, zb, vb, tangent, dt_hist, count
                 continue
             nx, ny = _wall_normal(w)
             vx = vel[i, 0]
-            vy = vel[i, 1] - (vb if w == 2 else 0.0)
+            vy = vel[i, 1] - wall_velocity(fw, w, vb)
             if law_id == 0:
                 fx, fy, f_n, f_t, regime = drum_force(
                     nx, ny, -overlap, vx, vy, law[0], law[1], law[2], law[3]
@@ -1279,7 +1285,7 @@ def _flat_walls(law_id, vec, sca, ivec, law, fw, zb, vb, tangent, dt_hist, count
                     law[5] if w == 2 else law[6],
                 )
                 xi_w[i] = xi_new
-                trq[i] += tau_i
+                trq[i] += tau_i * wall_torque_factor(fw)
             frc[i, 0] += fx
             frc[i, 1] += fy
             ncon += 1

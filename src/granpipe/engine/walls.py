@@ -14,7 +14,12 @@ on the wall side (docs/drum.md, docs/box.md; docs/architecture.md, "The engine")
   optional linear amplitude ramp ``r(t) = clip((t - ramp_start)/ramp_time, 0, 1)``
   (docs/box.md, hazard (i): start smoothly with a phase offset, e.g. ``phase = -pi/2``
   starts at the bottom turning point, and/or a ramp). The vertical axis is the
-  second coordinate; the box paper's ``z`` is our ``y``.
+  second coordinate; the box paper's ``z`` is our ``y``. With ``shaken_sides`` the
+  side walls move vertically with the bottom (the whole box is driven, docs/box.md,
+  "Which walls move"): an infinite vertical line keeps its place, but a disk touching
+  it slides against a wall moving at ``dz_b/dt``. With ``wall_torque = False`` the
+  walls' tangential force exerts no torque on the disk (the ``sigma_j = 0`` reading of
+  the box paper's Eq. A4 for a flat wall).
 
 Timing inside a step (velocity Verlet, forces at ``t_{n+1}`` from positions at
 ``t_{n+1}`` and half-step velocities): walls take their positions at ``t_{n+1}``
@@ -31,7 +36,8 @@ import numpy as np
 from granpipe._jit import njit
 from granpipe.errors import ConfigError
 
-__all__ = ["WallDisks", "FlatWalls", "bottom_height", "bottom_velocity"]
+__all__ = ["WallDisks", "FlatWalls", "bottom_height", "bottom_velocity", "wall_velocity",
+           "wall_torque_factor"]
 
 
 @dataclass(frozen=True)
@@ -91,6 +97,12 @@ class FlatWalls:
     ramp_start, ramp_time : float [time]
         Linear amplitude ramp from 0 at ``ramp_start`` to ``A`` at
         ``ramp_start + ramp_time`` (``ramp_time = 0``: no ramp).
+    shaken_sides : bool
+        The side walls move vertically with the bottom (velocity ``dz_b/dt``); False:
+        they stand still and only the bottom is driven.
+    wall_torque : bool
+        The walls' tangential force exerts a torque on the disk (lever from the disk's
+        centre to the contact point); False: it acts on the disk's centre only.
     """
 
     x_left: float | None = None
@@ -102,6 +114,8 @@ class FlatWalls:
     phase: float = 0.0
     ramp_start: float = 0.0
     ramp_time: float = 0.0
+    shaken_sides: bool = False
+    wall_torque: bool = True
 
     def __post_init__(self):
         if self.x_left is not None and self.x_right is not None and self.x_right <= self.x_left:
@@ -124,6 +138,8 @@ class FlatWalls:
                 self.phase,
                 self.ramp_start,
                 self.ramp_time,
+                1.0 if self.shaken_sides else 0.0,
+                1.0 if self.wall_torque else 0.0,
             ],
             dtype=np.float64,
         )
@@ -139,7 +155,7 @@ class FlatWalls:
         return np.vectorize(lambda s: bottom_velocity(p, s))(t)
 
 
-NO_FLAT_WALLS = np.zeros(11)
+NO_FLAT_WALLS = FlatWalls(bottom=False).params()
 NO_WALL_DISKS = np.array([0.0, 0.0, 0.0, 0.0, np.inf])
 
 
@@ -168,6 +184,19 @@ def bottom_velocity(fw, t):
     r, dr = _ramp(fw, t)
     arg = fw[7] * t + fw[8]
     return fw[6] * (r * fw[7] * math.cos(arg) + dr * math.sin(arg))
+
+
+@njit
+def wall_velocity(fw, w, vb):
+    """Vertical velocity of flat wall ``w`` (0 left, 1 right, 2 bottom) when the bottom
+    moves at ``vb``: the bottom's, and the side walls' if they are shaken with it."""
+    return vb if (w == 2 or fw[11] != 0.0) else 0.0
+
+
+@njit
+def wall_torque_factor(fw):
+    """1 if the walls' tangential force exerts a torque on the disk, else 0."""
+    return fw[12]
 
 
 @njit
