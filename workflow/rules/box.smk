@@ -176,7 +176,7 @@ if "box" in config:
                 caption="../report/box_fig5.rst",
             ),
             fig6=report(
-                out("box", "figures", "fig6_wall_friction.png"),
+                out("box", "figures", "fig6_walls.png"),
                 category="box",
                 caption="../report/box_fig6.rst",
             ),

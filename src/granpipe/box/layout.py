@@ -331,7 +331,7 @@ FIGURES = {
     3: "fig3_phase_diagram",
     4: "fig4_granular_temperature",
     5: "fig5_slip_probability",
-    6: "fig6_wall_friction",
+    6: "fig6_walls",
 }
 """Figure number -> file stem (PNG and PDF of each); 6 (thresholds against the side walls'
 friction) is ours."""

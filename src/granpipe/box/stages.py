@@ -553,9 +553,7 @@ def figures_stage(
         "paper: bouncing just above Γ = 1": PAPER["Gamma_bouncing"],
         "paper: random-start convection, K_m ≈ 3.3": math.sqrt(PAPER["K_m_break_random"]),
     }
-    written += save_figure(
-        figs.fig6_wall_friction(all_ths, paper_lines), Path(out_dir) / layout.FIGURES[6]
-    )
+    written += save_figure(figs.fig6_walls(all_ths, paper_lines), Path(out_dir) / layout.FIGURES[6])
     if log:
         log("figures: " + ", ".join(str(p) for p in written))
     return written

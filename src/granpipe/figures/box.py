@@ -7,12 +7,14 @@
   segmented fits and their breakpoints (dashed) with intervals (shaded).
 * :func:`fig5_slip_probability` — p_s against 1/K_m (log), Arrhenius fits per region,
   points without slips as upper bounds.
-* :func:`fig6_wall_friction` — (ours) the thresholds in Γ against the side walls' Coulomb
-  coefficient μ_w, one panel per N_l, the paper's thresholds as lines.
+* :func:`fig6_walls` — (ours) the thresholds in Γ against the walls: against the side
+  walls' Coulomb coefficient μ_w (one panel per N_l) when the grid has several, else
+  against N_l; one line style per drive of the side walls and wall torque, the paper's
+  thresholds as lines.
 
-Figures 3–5 draw one side-wall friction (the stage picks Table I's 0.6 when the grid has
-it); crystal points whose crystal broke before measurement are drawn as crosses and are
-not part of any fit.
+Figures 3–5 draw one wall setting (the stage picks Table I's μ_w = 0.6 with the whole box
+shaken when the grid has it); crystal points whose crystal broke before measurement are
+drawn as crosses and are not part of any fit.
 
 Inputs are pandas tables built from the fits files (:func:`granpipe.box.stages.load_fits`)
 and snapshots (positions + order codes). :func:`save` writes PNG and PDF atomically.
@@ -36,7 +38,7 @@ __all__ = [
     "fig3_phase_diagram",
     "fig4_granular_temperature",
     "fig5_slip_probability",
-    "fig6_wall_friction",
+    "fig6_walls",
     "segmented_curve",
 ]
 
@@ -318,49 +320,70 @@ def fig5_slip_probability(
     return fig
 
 
-def fig6_wall_friction(thresholds: pd.DataFrame, paper: dict | None = None):
-    """Thresholds in Γ against the side walls' Coulomb coefficient μ_w (ours).
+WALL_STYLES = {
+    ("shaken", "lever"): "-",
+    ("shaken", "none"): "--",
+    ("still", "lever"): ":",
+    ("still", "none"): "-.",
+}
+"""Line style of each (side walls' drive, wall torque) in Fig. 6."""
+
+
+def fig6_walls(thresholds: pd.DataFrame, paper: dict | None = None):
+    """Thresholds in Γ against the walls (ours): against the side walls' Coulomb
+    coefficient μ_w, one panel per N_l, when the grid has more than one μ_w; against N_l,
+    one panel per μ_w, otherwise. One line per criterion, start and wall setting (line
+    style: the side walls' drive and torque, :data:`WALL_STYLES`).
 
     Parameters
     ----------
     thresholds : DataFrame
-        Columns init, N_l, mu_w, criterion, Gamma, Gamma_low, Gamma_high, status (rows of
-        :func:`granpipe.box.fits.thresholds_table`).
+        Columns init, N_l, mu_w, side_walls, wall_torque, criterion, Gamma, Gamma_low,
+        Gamma_high, status (rows of :func:`granpipe.box.fits.thresholds_table`).
     paper : dict, optional
         Lines to draw: label -> Γ (e.g. the paper's bouncing and random-start convection).
 
     A threshold below (above) the grid is drawn at the grid's first (last) Γ with an
     arrow; error bars are the bracketing grid points.
     """
-    n_ls = sorted({int(n) for n in thresholds["N_l"]})
-    fig, axes = plt.subplots(1, len(n_ls), figsize=(4.2 * len(n_ls) + 1.6, 3.8),
+    against_mu = thresholds["mu_w"].nunique() > 1
+    x_col, panel_col = ("mu_w", "N_l") if against_mu else ("N_l", "mu_w")
+    panels = sorted(set(thresholds[panel_col]))
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels) + 2.2, 3.8),
                              layout="constrained", squeeze=False, sharey=True)  # fmt: skip
-    shift = {("random", "bouncing"): -0.012, ("crystal", "bouncing"): -0.006,
-             ("random", "detachment"): 0.0, ("crystal", "detachment"): 0.006,
-             ("random", "convection"): 0.012, ("crystal", "convection"): 0.018}  # fmt: skip
-    for ax, n_l in zip(axes[0], n_ls, strict=True):
-        sel = thresholds[thresholds["N_l"] == n_l]
-        for (init, crit), g in sel.groupby(["init", "criterion"]):
-            g = g.sort_values("mu_w")
-            x = g["mu_w"].to_numpy(float) + shift.get((init, crit), 0.0)
+    span = float(np.ptp(thresholds[x_col].to_numpy(float))) or 1.0
+    order = [(i, c) for c in CRITERION_COLORS for i in ("random", "crystal")]
+    for ax, value in zip(axes[0], panels, strict=True):
+        sel = thresholds[thresholds[panel_col] == value]
+        for (init, crit, side, torque), g in sel.groupby(
+            ["init", "criterion", "side_walls", "wall_torque"]
+        ):
+            g = g.sort_values(x_col)
+            k = order.index((init, crit)) if (init, crit) in order else 0
+            x = g[x_col].to_numpy(float) + span * 0.006 * (k - len(order) / 2)
             y = g["Gamma"].to_numpy(float)
             lo, hi = g["Gamma_low"].to_numpy(float), g["Gamma_high"].to_numpy(float)
             color = CRITERION_COLORS.get(crit, "k")
             fill = "full" if init == "random" else "none"
             mk = INIT_MARKERS.get(init, "o")
             ok = np.isfinite(y)
-            ax.errorbar(x[ok], y[ok], yerr=[y[ok] - lo[ok], hi[ok] - y[ok]], fmt=mk + "-",
-                        color=color, fillstyle=fill, ms=6, capsize=3, lw=1,
-                        label=f"{crit}, {init}")  # fmt: skip
+            ax.errorbar(x[ok], y[ok], yerr=[y[ok] - lo[ok], hi[ok] - y[ok]], fmt=mk,
+                        ls=WALL_STYLES.get((side, torque), "-"), color=color, fillstyle=fill,
+                        ms=6, capsize=3, lw=1,
+                        label=f"{crit}, {init}, {side} walls, torque {torque}")  # fmt: skip
             _beyond_grid(ax, x, lo, hi, g["status"], mk, color, fill, ms=6, step=0.15)
-        for label, value in (paper or {}).items():
-            ax.axhline(value, color="0.5", lw=0.8, ls=":")
-            ax.text(1.0, value, label, transform=ax.get_yaxis_transform(), ha="right",
+        for label, line in (paper or {}).items():
+            ax.axhline(line, color="0.5", lw=0.8, ls=":")
+            ax.text(1.0, line, label, transform=ax.get_yaxis_transform(), ha="right",
                     va="bottom", fontsize=6, color="0.35")  # fmt: skip
-        ax.set_xlabel(r"side-wall friction $\mu_w$")
-        ax.set_title(f"$N_l$ = {n_l}", fontsize=9)
+        if against_mu:
+            ax.set_xlabel(r"side-wall friction $\mu_w$")
+            ax.set_title(f"$N_l$ = {int(value)}", fontsize=9)
+        else:
+            ax.set_xlabel(r"$N_l\sigma$ (layers)")
+            ax.set_title(f"$\\mu_w$ = {value:g}", fontsize=9)
     axes[0][0].set_ylabel(r"threshold $\Gamma$")
     handles, labels = axes[0][0].get_legend_handles_labels()
-    fig.legend(handles, labels, fontsize=7, loc="outside right upper",
+    fig.legend(handles, labels, fontsize=6, loc="outside right upper",
                title="thresholds (arrows:\nbeyond the grid)", title_fontsize=7)  # fmt: skip
     return fig
