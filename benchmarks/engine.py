@@ -7,9 +7,8 @@ Systems (one replica, one thread, compiled code loaded from numba's cache first)
 * drum: 736 mobile + 150 wall disks (docs/drum.md), a pile settled with the drum at rest,
   then turning clockwise at Omega = 2.4417e-4; forward only, and with the tangent
   dynamics (lambda and V recorded in 4 ms blocks). ns per *mobile* particle-step. With
-  the tangent dynamics also through the contact-law contract's generic scalar passes
-  (the reference path, ``Simulation(passes="generic")``) and under the static-friction
-  law (spin and shear history, generic passes; docs/drum.md, "Static friction").
+  the tangent dynamics also under the static-friction law (spin and shear history;
+  docs/drum.md, "Static friction"), through the same passes.
 * box: N = 1200 disks (sigma = 1, m = 1) in Lx = 20 with the Table I law, dt = t_c/50;
   driven at Gamma = 2 (A = 2, omega = 1) after six periods of transient, timed over
   whole drive periods; and at rest as a dense hexagonal crystal on the bottom.
@@ -20,8 +19,8 @@ other jobs share the cores (the wall/CPU ratio is printed beside it); the contac
 and neighbour-list statistics of the timed steps are printed beside it. Settled
 starting states are cached in the system temp folder (delete the ``granpipe_bench_*``
 files to rebuild them). The last line is one JSON object:
-``{"drum_forward_ns", "drum_tangent_ns", "drum_generic_tangent_ns",
-"static_friction_tangent_ns", "box_driven_ns", "box_dense_ns"}`` (medians).
+``{"drum_forward_ns", "drum_tangent_ns", "static_friction_tangent_ns", "box_driven_ns",
+"box_dense_ns"}`` (medians).
 
 For scale: LAMMPS GRANULAR on one core of a 2-core machine takes about
 110 (drum), 38 (driven box) and 100 (dense crystal) ns per particle-step. On a shared
@@ -235,22 +234,17 @@ def main(argv=None):
     med, per, stats = timed(sim, state, steps, args.repeats, 736, tangent=True)
     report("drum tangent", med, per, stats)
     out["drum_tangent_ns"] = med
-    # the same pile through the contract's generic scalar passes (the reference path),
-    # and under the static-friction law (spin, shear history; generic passes)
-    for name, key, law, passes in (
-        ("drum generic t.", "drum_generic_tangent_ns", sim.law, "generic"),
-        ("static fric. t.", "static_friction_tangent_ns", StaticFrictionLaw(**DRUM_PARAMS), "law"),
-    ):
-        gsim = sim.replace(law=law, passes=passes)
-        gstate = gsim.new_state(
-            state.positions, state.radii, state.masses, velocities=state.velocities,
-            is_wall=state.is_wall,
-        )  # fmt: skip
-        gsim.random_tangent(gstate, np.random.default_rng(1))
-        gsim.run(gstate, 35, stride=35, tangent=True)
-        med, per, stats = timed(gsim, gstate, steps, args.repeats, 736, tangent=True)
-        report(name, med, per, stats)
-        out[key] = med
+    # the same pile under the static-friction law (spin, shear history)
+    ssim = sim.replace(law=StaticFrictionLaw(**DRUM_PARAMS))
+    sstate = ssim.new_state(
+        state.positions, state.radii, state.masses, velocities=state.velocities,
+        spins=np.zeros(state.n), is_wall=state.is_wall,
+    )  # fmt: skip
+    ssim.random_tangent(sstate, np.random.default_rng(1))
+    ssim.run(sstate, 35, stride=35, tangent=True)
+    med, per, stats = timed(ssim, sstate, steps, args.repeats, 736, tangent=True)
+    report("static fric. t.", med, per, stats)
+    out["static_friction_tangent_ns"] = med
 
     sim, state, period = box_driven(args.skin, args.quick)
     sim.run(state, 10)

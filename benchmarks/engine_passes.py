@@ -3,12 +3,11 @@
     .venv/bin/python benchmarks/engine_passes.py [--repeats 5]
 
 Runs on the same settled states as ``benchmarks/engine.py`` (drum pile of docs/drum.md,
-rotating, with a tangent vector; dense box crystal of docs/box.md) through the engine's
-public hook :meth:`granpipe.engine.Simulation.profile_passes`, which times each pass of a
-law's step loop in a jitted loop: for the drum law its gather, contact law and scatter,
-the fused four-lane pass (forward and with the tangent vector), the kicks and a list
-rebuild; for the box law gather, law, scatter, flat walls and kicks; and the generic
-passes of the drum pile under every law (drum, static friction). Figures are the best of
+rotating, with a tangent vector, under the drum law and under static friction; dense box
+crystal of docs/box.md) through the engine's public hook
+:meth:`granpipe.engine.Simulation.profile_passes`, which times each pass of the step loop
+in a jitted loop: gather, the law's rows and scatter, forward and with the tangent
+vector, the flat walls, the kicks and a list rebuild. Figures are the best of
 ``--repeats`` loops (the machine's noise only adds time), in ns per particle and ns per
 listed pair; the passes of one step add up to a little less than the whole step of
 engine.py (the remainder is wall motion, bookkeeping and the step loop itself). The last
@@ -62,19 +61,14 @@ def main(argv=None):
     print(f"drum: {t['n_pairs']} listed pairs, {t['n_pairs'] / N_DRUM_MOBILE:.2f} per mobile disk")
     _rows(out, "drum", t, N_DRUM_MOBILE)
 
-    # the generic passes on the same pile, under the drum law and under static friction
-    walls = WallDisks(omega=OMEGA_DRUM)
-    for name, law in (
-        ("drum", sim.law),
-        ("static", StaticFrictionLaw(565.97, 8.7308, 6.8927, 0.44)),
-    ):
-        gsim = Simulation(law, dt=DT_DRUM, wall_disks=walls, passes="generic")
-        spins = np.zeros(pile.n) if law.has_spin else None
-        g = gsim.new_state(pile.positions, pile.radii, pile.masses, velocities=pile.velocities,
-                           spins=spins, is_wall=pile.is_wall)  # fmt: skip
-        gsim.random_tangent(g, np.random.default_rng(1))
-        gsim.run(g, 700, tangent=True)
-        _rows(out, f"generic.{name}", gsim.profile_passes(g, repeats=rep), N_DRUM_MOBILE)
+    # the same pile under static friction (spin, shear history)
+    law = StaticFrictionLaw(565.97, 8.7308, 6.8927, 0.44)
+    ssim = Simulation(law, dt=DT_DRUM, wall_disks=WallDisks(omega=OMEGA_DRUM))
+    s = ssim.new_state(pile.positions, pile.radii, pile.masses, velocities=pile.velocities,
+                       spins=np.zeros(pile.n), is_wall=pile.is_wall)  # fmt: skip
+    ssim.random_tangent(s, np.random.default_rng(1))
+    ssim.run(s, 700, tangent=True)
+    _rows(out, "static", ssim.profile_passes(s, repeats=rep, nrep=5000), N_DRUM_MOBILE)
 
     sim, state = box_crystal()
     sim.run(state, 10)

@@ -1,5 +1,7 @@
 """Slow, obviously-correct references for the engine's fast kernels (STYLE.md, stumpy).
 
+* :func:`drum_eq1` — the drum paper's Eq. 1 written out in numpy, independently of the
+  engine's leaf.
 * :func:`all_pair_forces` — forces by looping over all pairs and walls in Python.
 * :func:`contact_ode` — a binary contact integrated as an ODE to tolerance 1e-12
   (scipy DOP853), the continuous-time answer the discrete engine must converge to.
@@ -14,7 +16,18 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from granpipe.engine import BoxLaw, DrumLaw
+
+def drum_eq1(law, n, overlap, v):
+    """Force on i of drum paper Eq. 1 for a contact of unit normal ``n`` (from j to i),
+    overlap ``overlap`` (> 0 in contact) and relative velocity ``v = v_i - v_j``:
+    ``f_n = k_n overlap - gamma_n v.n`` along n, ``-min(gamma_t |u|, mu max(f_n, 0))
+    sign(u)`` along ``t = (-n_y, n_x)`` with ``u = v.t``. ``law``: the DrumLaw."""
+    n = np.asarray(n, float)
+    t = np.array([-n[1], n[0]])
+    f_n = law.k_n * overlap - law.gamma_n * (v @ n)
+    u = v @ t
+    f_t = -min(law.gamma_t * abs(u), law.mu * max(f_n, 0.0)) * np.sign(u)
+    return f_n * n + f_t * t
 
 
 def all_pair_forces(
@@ -29,10 +42,12 @@ def all_pair_forces(
     flat=None,
     bottom=(0.0, 0.0),
 ):
-    """Forces (and torques) on every disk from all pairs and flat walls, in plain Python.
+    """Forces (and torques) on every disk from all pairs and flat walls, in plain Python,
+    one contact at a time through the law's leaf (:meth:`ContactLaw.pair`,
+    :meth:`ContactLaw.wall_pair`): the sum over pairs and walls the passes make.
 
     ``flat``: dict with optional keys ``x_left``, ``x_right``, ``bottom`` (True); ``bottom``
-    = (z_b, v_b). Box-law histories are taken as zero (a fresh evaluation).
+    = (z_b, v_b). Shear histories are taken as zero (a fresh evaluation).
     """
     n = len(radii)
     f = np.zeros((n, 2))
@@ -47,68 +62,34 @@ def all_pair_forces(
                 continue
             d = positions[i] - positions[j]
             v = velocities[i] - velocities[j]
-            if isinstance(law, DrumLaw):
-                fij = law.force(d, v, radii[i] + radii[j])
-                ti = tj = 0.0
-            else:
-                mi = math.inf if is_wall[i] else masses[i]
-                mj = math.inf if is_wall[j] else masses[j]
-                m_eff = 1.0 / (1.0 / mi + 1.0 / mj)
-                fij, ti, tj, _ = law.force(d, v, spins[i], spins[j], radii[i], radii[j], m_eff)
-            f[i] += fij
-            f[j] -= fij
-            tau[i] += ti
-            tau[j] += tj
+            mi = math.inf if is_wall[i] else masses[i]
+            mj = math.inf if is_wall[j] else masses[j]
+            m_eff = 1.0 / (1.0 / mi + 1.0 / mj)
+            out, _ = law.pair(d, v, spins[i], spins[j], radii[i], radii[j], m_eff)
+            f[i] += out[:2]
+            f[j] -= out[:2]
+            tau[i] += out[2]
+            tau[j] += out[3]
     if flat:
         walls = []
         if flat.get("x_left") is not None:
-            walls.append((np.array([1.0, 0.0]), lambda p: p[0] - flat["x_left"], np.zeros(2), 6))
+            walls.append((np.array([1.0, 0.0]), lambda p: p[0] - flat["x_left"], np.zeros(2), 0))
         if flat.get("x_right") is not None:
-            walls.append((np.array([-1.0, 0.0]), lambda p: flat["x_right"] - p[0], np.zeros(2), 6))
+            walls.append((np.array([-1.0, 0.0]), lambda p: flat["x_right"] - p[0], np.zeros(2), 1))
         if flat.get("bottom"):
             walls.append(
-                (np.array([0.0, 1.0]), lambda p: p[1] - bottom[0], np.array([0.0, bottom[1]]), 5)
+                (np.array([0.0, 1.0]), lambda p: p[1] - bottom[0], np.array([0.0, bottom[1]]), 2)
             )
         for i in range(n):
             if is_wall[i]:
                 continue
-            for normal, dist, vwall, mu_index in walls:
+            for normal, dist, vwall, w in walls:
                 h = dist(positions[i])
                 v = velocities[i] - vwall
-                if isinstance(law, DrumLaw):
-                    f[i] += law.wall_force(h, v, radii[i], normal)
-                elif h <= radii[i]:
-                    fw, ti, _, _ = _box_wall(
-                        law, h, v, spins[i], radii[i], masses[i], normal, mu_index
-                    )
-                    f[i] += fw
-                    tau[i] += ti
+                out, _, _ = law.wall_pair(h, v, spins[i], radii[i], masses[i], normal, wall=w)
+                f[i] += out[:2]
+                tau[i] += out[2]
     return f, tau
-
-
-def _box_wall(law, h, v, spin, radius, mass, normal, mu_index=5):
-    """Box law against a flat wall: the pair law with n fixed and the lever at mid-overlap."""
-    from granpipe.engine.laws import box_force
-
-    ov = radius - h
-    p = law.params()
-    fx, fy, ti, tj, xi, *_ = box_force(
-        normal[0],
-        normal[1],
-        ov,
-        radius - 0.5 * ov,
-        0.0,
-        v[0],
-        v[1],
-        spin,
-        0.0,
-        mass,
-        0.0,
-        0.0,
-        *p[:4],
-        p[mu_index],
-    )
-    return np.array([fx, fy]), ti, tj, xi
 
 
 def contact_ode(force, d0, v0, m_eff, contact_distance, t_max):
@@ -183,4 +164,4 @@ def step_by_step_collision(sim, state, mover=0, other=None, max_steps=10**6):
     }
 
 
-__all__ = ["all_pair_forces", "contact_ode", "step_by_step_collision", "BoxLaw"]
+__all__ = ["drum_eq1", "all_pair_forces", "contact_ode", "step_by_step_collision"]

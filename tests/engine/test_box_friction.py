@@ -91,7 +91,7 @@ G_X, G_Y = 1.0, 0.1  # pressed against the left wall by m G_X, pulled down by m 
 DRIVE = 0.2  # wall amplitude A (omega = 1): wall acceleration up to 0.2 g
 
 
-def _against_side_wall(shaken, torque, passes, inertia=None):
+def _against_side_wall(shaken, torque, inertia=None):
     """A disk pressed against the left wall of a box whose plate (far below) moves as
     ``z_b = -50 - A cos t`` (at rest at t = 0), run for half a period, t = pi: the wall
     rises by 2 A. The friction a sticking contact needs, m (a_wall + G_Y) <= 0.3 m, stays
@@ -100,35 +100,33 @@ def _against_side_wall(shaken, torque, passes, inertia=None):
         x_left=0.0, bottom=True, z0=-50.0, amplitude=DRIVE, omega=1.0, phase=-math.pi / 2,
         shaken_sides=shaken, wall_torque=torque,
     )  # fmt: skip
-    sim = Simulation(BOX_LAW, dt=DT, flat_walls=walls, gravity=(-G_X, -G_Y), passes=passes)
+    sim = Simulation(BOX_LAW, dt=DT, flat_walls=walls, gravity=(-G_X, -G_Y))
     kw = {} if inertia is None else {"inertia": [inertia]}
     state = sim.new_state([[A - G_X / BOX_LAW.kappa_n, 0.0]], [A], [1.0], **kw)
     sim.run(state, round(math.pi / DT))
     return state
 
 
-@pytest.mark.parametrize("passes", ["law", "generic"])
-def test_a_shaken_side_wall_carries_a_sticking_disk_and_a_still_one_holds_it(passes):
+def test_a_shaken_side_wall_carries_a_sticking_disk_and_a_still_one_holds_it():
     """A disk that cannot turn sticks to the wall: it rises with a shaken wall by the
     wall's 2 A (less the elastic shear, ~1e-5), and stays put at a still one, which
     holds the weight m G_Y < mu m G_X."""
-    up = _against_side_wall(True, True, passes, inertia=math.inf)
+    up = _against_side_wall(True, True, inertia=math.inf)
     assert up.positions[0, 1] == pytest.approx(2 * DRIVE, abs=1e-4)
     assert up.velocities[0, 1] == pytest.approx(0.0, abs=1e-4)  # the wall turns at t = pi
-    held = _against_side_wall(False, True, passes, inertia=math.inf)
+    held = _against_side_wall(False, True, inertia=math.inf)
     assert abs(held.positions[0, 1]) < 1e-4
 
 
-@pytest.mark.parametrize("passes", ["law", "generic"])
-def test_a_free_disk_rolls_on_a_shaken_wall_and_without_wall_torque_is_carried(passes):
+def test_a_free_disk_rolls_on_a_shaken_wall_and_without_wall_torque_is_carried():
     """A free disk (I = m a²/2) rolls without slipping on the moving wall: from
     m y'' = f - m G_Y, I w' = -f a and y'' + a w' = a_wall, y'' = (a_wall - 2 G_Y)/3, so
     y(pi) = (2 A - G_Y pi²)/3. Without wall torque (the sigma_j = 0 reading of Eq. A4) the
     disk never turns, the contact sticks, and the disk rises with the wall by 2 A."""
-    rolled = _against_side_wall(True, True, passes)
+    rolled = _against_side_wall(True, True)
     assert rolled.positions[0, 1] == pytest.approx((2 * DRIVE - G_Y * math.pi**2) / 3, rel=1e-3)
     assert rolled.spins[0] != 0.0
-    carried = _against_side_wall(True, False, passes)
+    carried = _against_side_wall(True, False)
     assert carried.spins[0] == 0.0
     assert carried.positions[0, 1] == pytest.approx(2 * DRIVE, abs=1e-4)
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from granpipe.engine import BoxLaw, DrumLaw, FlatWalls, Simulation, WallDisks
-from granpipe.engine import kernels as K
+from granpipe.engine import layout as K
 from tests.engine.conftest import DRUM_LAW, DT_DRUM, small_drum
 from tests.engine.geometry import random_disks_in_box
 

@@ -1,4 +1,5 @@
-"""Contact laws: Jacobians against central finite differences, analytic contact values."""
+"""The papers' contact laws: Jacobian leaves against central finite differences at pairs
+and flat walls, on each smooth piece, and analytic contact values."""
 
 import math
 
@@ -6,7 +7,7 @@ import numpy as np
 import pytest
 
 from granpipe.engine import BoxLaw, DrumLaw
-from granpipe.engine.laws import COULOMB, NO_FRICTION, VISCOUS, drum_force
+from granpipe.engine.laws import COULOMB, NO_FRICTION, VISCOUS
 
 DRUM = DrumLaw(k_n=565.97, gamma_n=8.7308, gamma_t=6.8927, mu=0.44)
 BOX = BoxLaw(kappa_n=1e6, kappa_t=1e4, gamma_n=100.0, gamma_t=100.0, mu=0.6)
@@ -29,8 +30,18 @@ def assert_jacobian_close(j_exact, j_fd, rtol=1e-6):
 
 
 def drum_regime(d, v, radius_sum):
-    r = np.hypot(*d)
-    return drum_force(d[0] / r, d[1] / r, r - radius_sum, v[0], v[1], *DRUM.params())[4]
+    return DRUM.pair(d, v, 0.0, 0.0, radius_sum / 2, radius_sum / 2, 0.5)[1]
+
+
+def drum_force(d, v, s):
+    """The drum law's force on i (its Eq. 1 does not depend on the radii apart from
+    their sum, nor on spins or masses)."""
+    return DRUM.pair(d, v, 0.0, 0.0, s / 2, s / 2, 0.5)[0][:2]
+
+
+def drum_jacobian(d, v, s):
+    jac = DRUM.pair_jacobian(d, v, 0.0, 0.0, s / 2, s / 2, 0.5)
+    return jac[:2, :2], jac[:2, 2:4]
 
 
 def random_drum_contacts(rng, wanted, count):
@@ -58,10 +69,10 @@ def random_drum_contacts(rng, wanted, count):
 def test_drum_pair_jacobian_matches_finite_differences(regime):
     rng = np.random.default_rng(1 + regime)
     for d, v, s in random_drum_contacts(rng, regime, 20):
-        j_d, j_v = DRUM.jacobian(d, v, s)
-        fd_d = central_difference(lambda x, v=v, s=s: DRUM.force(x, v, s), d, [1e-7] * 2)
+        j_d, j_v = drum_jacobian(d, v, s)
+        fd_d = central_difference(lambda x, v=v, s=s: drum_force(x, v, s), d, [1e-7] * 2)
         h_v = [1e-7 * (1 + abs(v).max())] * 2
-        fd_v = central_difference(lambda x, d=d, s=s: DRUM.force(d, x, s), v, h_v)
+        fd_v = central_difference(lambda x, d=d, s=s: drum_force(d, x, s), v, h_v)
         assert_jacobian_close(j_d, fd_d)
         assert_jacobian_close(j_v, fd_v)
 
@@ -80,13 +91,15 @@ def test_drum_flat_wall_jacobian_matches_finite_differences(normal):
         u = v @ t
         if abs(DRUM.gamma_t * abs(u) - DRUM.mu * f_n) < 1e-3 * (1 + abs(f_n)) or abs(f_n) < 1e-2:
             continue
-        j_h, j_v = DRUM.wall_jacobian(h, v, radius, n)
+        jac = DRUM.wall_pair_jacobian(h, v, 0.0, radius, 1.0, n)
+        # a displacement dd of the disk changes h by n . dd
+        j_h, j_v = jac[:2, :2] @ n, jac[:2, 2:4]
 
         def f_h(x, v=v, radius=radius):
-            return DRUM.wall_force(x[0], v, radius, n)
+            return DRUM.wall_pair(x[0], v, 0.0, radius, 1.0, n)[0][:2]
 
         def f_v(x, h=h, radius=radius):
-            return DRUM.wall_force(h, x, radius, n)
+            return DRUM.wall_pair(h, x, 0.0, radius, 1.0, n)[0][:2]
 
         fd_h = central_difference(f_h, [h], [1e-8])[:, 0]
         fd_v = central_difference(f_v, v, [1e-7] * 2)
@@ -115,8 +128,7 @@ def test_box_pair_jacobian_matches_finite_differences(want_slip):
         x0 = np.concatenate([d, v, w])
 
         def f(x, xi=xi, a_i=a_i, a_j=a_j, m_eff=m_eff):
-            force, ti, tj, _ = BOX.force(x[:2], x[2:4], x[4], x[5], a_i, a_j, m_eff, xi, dt)
-            return np.array([force[0], force[1], ti, tj])
+            return BOX.pair(x[:2], x[2:4], x[4], x[5], a_i, a_j, m_eff, xi, dt)[0][:4]
 
         # classify and keep away from the truncation surface
         n = d / r
@@ -128,7 +140,7 @@ def test_box_pair_jacobian_matches_finite_differences(want_slip):
         margin = abs(abs(f_t) - BOX.mu * abs(f_n))
         if (abs(f_t) > BOX.mu * abs(f_n)) != want_slip or margin < 1e-3 * abs(f_n):
             continue
-        jac = BOX.jacobian(d, v, w[0], w[1], a_i, a_j, m_eff, xi, dt)
+        jac = BOX.pair_jacobian(d, v, w[0], w[1], a_i, a_j, m_eff, xi, dt)[:4, :6]
         fd = central_difference(f, x0, [1e-9, 1e-9, 1e-7, 1e-7, 1e-7, 1e-7])
         for block in (slice(0, 2), slice(2, 4), slice(4, 6)):
             assert_jacobian_close(jac[:, block], fd[:, block])
@@ -174,10 +186,11 @@ def test_box_flat_wall_jacobian_matches_finite_differences(normal, want_slip):
             continue
 
         def f(x, xi=xi, a=a):
-            force, tau, _ = BOX.wall_force(x[0], x[1:3], x[3], a, 1.0, n, xi, dt)
-            return np.array([force[0], force[1], tau])
+            return BOX.wall_pair(x[0], x[1:3], x[3], a, 1.0, n, xi, dt)[0]
 
-        jac = BOX.wall_jacobian(h, v, w, a, 1.0, n, xi, dt)
+        full = BOX.wall_pair_jacobian(h, v, w, a, 1.0, n, xi, dt)[:3]
+        # columns (h, v_x, v_y, w): a displacement dd of the disk changes h by n . dd
+        jac = np.column_stack([full[:, :2] @ n, full[:, 2:5]])
         fd = central_difference(f, np.r_[h, v, w], [1e-9, 1e-7, 1e-7, 1e-7])
         assert_jacobian_close(jac[:, :1], fd[:, :1])
         assert_jacobian_close(jac[:, 1:3], fd[:, 1:3])

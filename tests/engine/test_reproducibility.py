@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from granpipe.engine import BoxLaw, Ensemble, FlatWalls, Simulation, State, WallDisks
-from granpipe.engine import kernels as K
+from granpipe.engine import layout as K
 from granpipe.engine import layout as L
-from granpipe.errors import SimulationError
+from granpipe.errors import ConfigError, SimulationError
 from tests.engine.conftest import DRUM_LAW, DT_DRUM, small_drum
 from tests.engine.geometry import random_disks_in_box
 
@@ -164,52 +164,41 @@ def test_saved_and_restored_state_continues_bit_identically(kind, tmp_path):
 
 
 @pytest.mark.parametrize("kind", ["drum", "box"])
-@pytest.mark.parametrize("fmt", [5, 6])
-def test_state_saved_in_format_5_or_6_continues_bit_identically(fmt, kind):
-    """Format 5 had no rows for the tangent vector's spin and torque and no perturbations
-    of the shear histories, format 6 none for the flat walls' history perturbations and
-    pieces (the generic passes' storage): such a state loads with them zero and
-    continues exactly."""
+def test_state_saved_in_format_6_continues_bit_identically(kind):
+    """Format 6 had no rows for the flat walls' history perturbations, and kept each
+    contact's smooth piece in its touch flags: such a state loads with them zero and
+    continues exactly; an older one is refused."""
     make, tangent = (drum_state, True) if kind == "drum" else (box_state, False)
     sim, a = make(5)
     sim.run(a, 300, tangent=tangent)
     old = a.to_arrays()
-    old["engine_format"] = np.asarray(fmt)
-    old["sca"] = old["sca"][:, : L.T_SPIN if fmt == 5 else L.T_XI_LEFT]
-    old["ivec"] = old["ivec"][:, : L.PIECE_LEFT]
-    if fmt == 5:
-        del old["pair_dxi"]
+    old["engine_format"] = np.asarray(6)
+    old["sca"] = old["sca"][:, : L.T_XI_LEFT]
     b = State.from_arrays(old)
-    assert b._s["sca"].shape == a._s["sca"].shape and b._s["ivec"].shape == a._s["ivec"].shape
+    assert b._s["sca"].shape == a._s["sca"].shape
     sim.run(a, 300, tangent=tangent)
     sim.run(b, 300, tangent=tangent)
     assert_identical(a, b)
+    old["engine_format"] = np.asarray(5)
+    with pytest.raises(ConfigError, match="format 5"):
+        State.from_arrays(old)
 
 
 @pytest.mark.parametrize("kind", ["drum", "box"])
-@pytest.mark.parametrize("fmt", [2, 3])
-def test_state_saved_in_an_older_format_continues_bit_identically(fmt, kind):
-    """States saved in engine formats 2 (scratch saved, one-byte touch flags) and 3 (all
-    scratch saved, four per-disk record rows in ``vec``), both without the near-wall
-    list's clock slot and counter, load and continue exactly as the state they were saved
-    from: the scratch is rewritten before it is read, the near-wall list rebuilt."""
+def test_state_saved_in_format_7_continues_bit_identically(kind):
+    """Format 7 kept each contact's smooth piece (three more rows of ``ivec``, and
+    ``1 + piece`` in the touch flags): such a state loads with them dropped, recounts its
+    contacts and continues exactly."""
     make, tangent = (drum_state, True) if kind == "drum" else (box_state, False)
     sim, a = make(5)
     sim.run(a, 300, tangent=tangent)
     old = a.to_arrays()
-    old["engine_format"] = np.asarray(fmt)
-    for key in ("buf", "old_j", "old_xi", "old_start"):
-        old[key] = a._s[key].copy()
-    old["clock"] = old["clock"][..., : K.ZB_NEAR]
-    old["counters"] = old["counters"][..., : K.NEAR_WALLS]
-    if fmt == 2:
-        old["touch"] = old["touch"].astype(np.uint8)
-    else:
-        # format 3 also saved four rows of per-disk records (scratch, now gone)
-        junk = np.full(a._s["vec"].shape[:1] + (4,) + a._s["vec"].shape[2:], np.nan)
-        old["vec"] = np.concatenate([a._s["vec"], junk], axis=1)
+    old["engine_format"] = np.asarray(7)
+    old["ivec"] = np.concatenate([old["ivec"], np.full(old["ivec"].shape[:1] + (3,) +
+                                  old["ivec"].shape[2:], 2)], axis=1)  # fmt: skip
+    old["touch"] = old["touch"] * 3  # 1 + piece 2 where touching
     b = State.from_arrays(old)
-    assert b._s["vec"].shape == a._s["vec"].shape
+    assert b._s["ivec"].shape == a._s["ivec"].shape
     sim.run(a, 300, tangent=tangent)
     sim.run(b, 300, tangent=tangent)
     assert_identical(a, b)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from granpipe.engine import FlatWalls, Simulation, WallDisks
-from granpipe.engine import kernels as K
+from granpipe.engine import layout as K
 from tests.engine.conftest import DRUM_LAW, DT_DRUM
 
 OMEGA = -2.4417e-4  # drum of docs/drum.md, clockwise

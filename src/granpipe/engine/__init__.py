@@ -4,37 +4,39 @@ Disks in the plane (second coordinate vertical), struct-of-arrays float64, veloc
 Verlet with gravity, cell lists feeding Verlet lists with a skin, contact laws under one
 contract (each a force leaf and its Jacobian leaf; :mod:`granpipe.engine.contract`,
 docs/architecture.md "Adding a contact law"), walls with prescribed motion, and tangent
-dynamics (the exact linearization of the discrete map): for every law on the generic
-passes (:mod:`granpipe.engine.generic`), and for the drum law on its own vectorised ones.
+dynamics (the exact linearization of the discrete map), every law through the same
+passes (:mod:`granpipe.engine.passes`: gather, the law's rows, scatter).
 
 Objects
 -------
 ``DrumLaw(k_n, gamma_n, gamma_t, mu)``
     Drum paper Eq. 1: linear spring-dashpot, viscous friction capped at Coulomb, no
-    spin, damping not scaled by mass. ``.force(d, v, radius_sum)``,
-    ``.jacobian(d, v, radius_sum) -> (J_d, J_v)``, ``.contact_time(m_eff)``,
-    ``.restitution(m_eff)``, ``.wall_force``/``.wall_jacobian`` for flat walls.
+    spin, damping not scaled by mass. ``.contact_time(m_eff)``, ``.restitution(m_eff)``.
 ``BoxLaw(kappa_n, kappa_t, gamma_n, gamma_t, mu, mu_wall=None, mu_side=None)``
     Box paper App. A: m_eff-scaled damping, tangential spring with history truncated
-    at Coulomb, spin with ``I = m sigma²/8``. ``.force(...)``, ``.jacobian(...)`` (4 x 6),
-    ``.contact_time(m_eff)``. ``mu_side = 0`` gives frictionless side walls.
+    at Coulomb, spin with ``I = m sigma²/8``. ``mu_side = 0`` gives frictionless side
+    walls.
 ``StaticFrictionLaw(k_n, gamma_n, gamma_t, mu, k_t=None)``
     The drum's normal law with spin (``I = m d²/8``) and a Cundall–Strack tangential
     spring truncated at Coulomb, ``k_t = k_n/3`` by default (docs/drum.md, "Static
-    friction"); runs on the generic passes. Every law has ``.pair(...)`` and
-    ``.pair_jacobian(...)`` (5 x 7) through its contract leaves.
+    friction").
+
+Every law has ``.params()`` (its leaves' parameters), ``.pair(...)`` and
+``.pair_jacobian(...)`` (5 x 7) for one contact, and ``.wall_pair(...)``,
+``.wall_pair_jacobian(...)`` against a flat wall, through its contract leaves.
 ``WallDisks(centre, omega, omega_after=None, t_switch=inf)``
     Rigid rotation of the disks flagged ``is_wall`` (counter-clockwise positive; the
     drum stop is ``omega_after=0`` at ``t_switch``).
-``FlatWalls(x_left, x_right, bottom, z0, amplitude, omega, phase, ramp_start, ramp_time)``
-    Vertical side lines and a bottom at ``z_b(t) = z0 + A r(t) sin(omega t + phase)``.
+``FlatWalls(x_left, x_right, bottom, z0, amplitude, omega, phase, ramp_start, ramp_time,
+shaken_sides=False, wall_torque=True)``
+    Vertical side lines and a bottom at ``z_b(t) = z0 + A r(t) sin(omega t + phase)``;
+    the side walls shaken with the bottom or still; wall friction with or without torque.
 ``Simulation(law, dt, gravity=(0, -1), wall_disks=None, flat_walls=None, skin=None,
-parallel=True, max_overlap=0.5, passes="law")``
+parallel=True, max_overlap=0.5)``
     ``.new_state(positions, radii, masses, *, velocities, spins, is_wall, inertia, time)
     -> State`` (or ``Ensemble`` for a leading replica axis);
     ``.run(state, n_steps, *, stride=0, tangent=False) -> Record`` advances in place;
     ``.set_tangent(state, dr, dv, dspin=None)``, ``.random_tangent(state, rng, fraction=0.1)``;
-    ``passes="generic"`` runs any law on the contract's reference passes (disk and flat walls);
     ``.refresh(state)`` after editing a state in place; ``.replace(**changes)``;
     ``.set_shear_history(state, pairs, xi)`` gives a rebuilt state its springs back;
     ``.profile_passes(state)`` times each pass of the step loop (seconds per call).
@@ -58,7 +60,7 @@ Conventions
 * One step: half kick, drift, walls, (list rebuild), forces at the half-step
   velocities, half kick. Forces, contact counts, shear histories, the tangent vector,
   the time and the wall angle live in the state, so chunked runs are bit-identical to
-  one long run, and replicas run side by side (``Ensemble``, under ``prange``) are
+  one long run, and replicas run side by side (``Ensemble``, in threads) are
   bit-identical to replicas run alone.
 * ``lambda(t) = (1/dt) ln(|du(t)|_S / |du(t - dt)|_S)`` with ``du = (dr, dv)`` of the
   mobile disks (4 per disk, ``dv`` at full steps) and both norms over the set S of
@@ -75,25 +77,19 @@ Conventions
 * Contacts touch at ``r <= a_i + a_j`` (the drum paper's ``delta <= 0``); the box
   law's shear history lives per listed pair and per disk and flat wall, is carried
   over list rebuilds, and is reset when a contact opens.
-* Threads: ``Simulation(parallel=True)`` runs an ensemble's replicas under numba's
-  ``prange`` (``numba.set_num_threads`` caps it); a State always runs serially in
-  the calling thread, without the GIL, so states may also be advanced side by side
-  from Python threads.
-* Performance (benchmarks/engine.py): the pair forces run as gather -> contact law
-  (vectorised) -> scatter over a flat pair list, and the law only on touching pairs
-  when fewer than half of the listed pairs touch. Measured on a shared 2-core EPYC
-  (thread CPU time, medians under load; best of 5 in brackets), ns per particle-step:
-  drum 24.6 (20.7) forward, 60.7 (46) with tangent; box driven at Gamma = 2: 18.7;
-  box dense crystal: 43.7 (36).
+* Threads: ``Simulation(parallel=True)`` runs an ensemble's replicas in threads, at
+  most ``numba.get_num_threads()``; a State runs serially in the calling thread,
+  without the GIL, so states may also be advanced side by side from Python threads.
+* Performance: the pair forces run as gather -> contact law (vectorised) -> scatter
+  over a flat pair list, and the law only on touching pairs when fewer than half of the
+  listed pairs touch; figures in docs/engine_performance.md (``benchmarks/engine.py``).
 
 Worked example
 --------------
-Two disks on a collision course, then the drum of docs/drum.md in miniature::
+Two disks on a collision course (the drum of docs/drum.md in miniature:
+docs/architecture.md, "The engine")::
 
-    import numpy as np
-    from granpipe.engine import DrumLaw, Simulation, WallDisks
-    from granpipe.drum.model import PAPER_PHYSICS, geometry, wall_positions
-    from granpipe.drum.preparation import random_placement
+    from granpipe.engine import DrumLaw, Simulation
 
     law = DrumLaw(k_n=565.97, gamma_n=8.7308, gamma_t=6.8927, mu=0.44)
     sim = Simulation(law, dt=1.14368e-3, gravity=(0.0, 0.0))
@@ -101,31 +97,6 @@ Two disks on a collision course, then the drum of docs/drum.md in miniature::
                           velocities=[[1.0, 0.0], [-1.0, 0.0]])
     sim.run(state, 200)
     state.velocities          # [[-0.43, 0], [0.43, 0]]: e = law.restitution(0.5) = 0.43
-
-    drum = geometry(PAPER_PHYSICS)                          # circumradius 33.057
-    ring = wall_positions(drum)                             # 150 touching wall disks
-    diam = np.where(np.arange(736) % 2 == 0, 1.0, 1.1667)
-    rng = np.random.default_rng(0)
-    inner = random_placement(diam, drum.inner_radius, rng)
-    pos = np.vstack([inner, ring])
-    radii = np.r_[diam / 2, np.full(150, 0.6923)]
-    masses = np.r_[diam**2, np.ones(150)]
-    is_wall = np.arange(886) >= 736
-    # disks falling from the top overlap the pile by up to 0.6 of a radius: a bound of 1
-    sim = Simulation(law, dt=1.14368e-3, wall_disks=WallDisks(omega=0.0), max_overlap=1.0)
-    state = sim.new_state(pos, radii, masses, is_wall=is_wall)
-    for _ in range(100):                                    # settle at rest
-        sim.run(state, 5_000)
-        if state.kinetic_energy() / 736 < 1e-6:
-            break
-    t_rot = state.time                                      # rotate clockwise ...
-    sim = sim.replace(wall_disks=WallDisks(omega=-2.4417e-4))
-    sim.random_tangent(state, rng)                          # 10% of 4N components
-    rec = sim.run(state, 35_000, stride=35, tangent=True)   # 40 s of drum time
-    rec.local_lyapunov, rec.global_speed                    # block means, 4 ms blocks
-    # ... and stop it abruptly 5 s into the next window (t in reduced units):
-    sim = sim.replace(wall_disks=WallDisks(omega=-2.4417e-4, omega_after=0.0,
-                                           t_switch=state.time + 5 / 0.034975))
 """
 
 from granpipe.engine.contract import ContactLaw, registered_laws
@@ -134,16 +105,5 @@ from granpipe.engine.simulation import Ensemble, Record, Simulation, State
 from granpipe.engine.static_friction import StaticFrictionLaw
 from granpipe.engine.walls import FlatWalls, WallDisks
 
-__all__ = [
-    "ContactLaw",
-    "StaticFrictionLaw",
-    "registered_laws",
-    "BoxLaw",
-    "DrumLaw",
-    "Ensemble",
-    "FlatWalls",
-    "Record",
-    "Simulation",
-    "State",
-    "WallDisks",
-]
+__all__ = ["ContactLaw", "StaticFrictionLaw", "registered_laws", "BoxLaw", "DrumLaw"]
+__all__ += ["Ensemble", "FlatWalls", "Record", "Simulation", "State", "WallDisks"]

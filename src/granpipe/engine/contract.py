@@ -1,24 +1,29 @@
-"""The contact-law contract: what a law declares, and the leaves the generic passes call.
+"""The contact-law contract: what a law declares, and the leaves the passes call.
 
 A law is one file (e.g. :mod:`granpipe.engine.static_friction`) that declares
 
 * its **parameters** as a :class:`typing.NamedTuple` subclass (the *parameter type*): the
-  kernels receive an instance, and numba compiles the generic passes once per type;
+  passes receive an instance, and numba compiles them once per type (and caches them);
 * its **capabilities**: spin (torques and angular velocities) and tangential history
-  (one elastic shear displacement per contact, carried over list rebuilds);
+  (one elastic shear displacement per contact, carried over list rebuilds). The passes
+  read them at compile time (:func:`law_has_spin`, :func:`law_has_history`), so a law
+  without spin or history pays nothing for them;
 * its **leaves**, implementations of the two generic functions below for its parameter
   type (``numba.extending.overload``; see :func:`law_leaf`): the force of one contact,
   and that force's directional derivative (Jacobian times a vector) with respect to the
   relative position, the relative velocity, both spins and the history;
 * a Python-level object (a subclass of :class:`ContactLaw`) that validates the
-  parameters and hands the kernels to :class:`granpipe.engine.Simulation`
-  (:meth:`ContactLaw.kernels`).
+  parameters and names the parameter type.
 
-The generic scalar passes of :mod:`granpipe.engine.generic` then give the law forward
-runs and tangent dynamics; a law needs no pass of its own. A law may opt into a faster
-path of its own by overriding :meth:`ContactLaw.kernels` (the drum and box laws of the
-papers keep their vectorised passes, :mod:`granpipe.engine.kernels`). See
-``docs/architecture.md``, "Adding a contact law".
+The passes of :mod:`granpipe.engine.passes` then give the law forward runs and tangent
+dynamics, against disk walls and flat walls. See ``docs/architecture.md``, "Adding a
+contact law".
+
+A leaf is called once per contact from a plain loop over contiguous rows; to let LLVM
+vectorise that loop it chooses between smooth pieces with expressions
+(``a if c else b`` of side-effect-free values) or ``if`` blocks that only assign, and
+never leaves early. ``tests/engine/test_contract.py`` checks that every registered law's
+loop compiles to packed square roots and divisions.
 
 Why overloads on a parameter type, not functions passed as arguments: numba cannot
 cache a kernel that takes a jitted function as an argument across processes (the
@@ -27,50 +32,42 @@ tuple type, which pickles by reference to its class. Every file of the engine is
 of the cache stamp (:mod:`granpipe._jit`), so an edit to a law recompiles the passes
 that inline it.
 
-Conventions of one contact, as in :mod:`granpipe.engine.laws`: the normal ``n`` points
-from j to i, the tangent is ``t = e_z x n = (-n_y, n_x)``, the contact point lies at the
-middle of the overlap (lever arms ``l_i + l_j = r``), forces are on i (j feels the
-opposite) and torques are counter-clockwise positive.
+Conventions of one contact: the normal ``n`` points from j to i, the tangent is
+``t = e_z x n = (-n_y, n_x)``, the contact point lies at the middle of the overlap
+(lever arms ``l_i + l_j = r``), forces are on i (j feels the opposite) and torques are
+counter-clockwise positive. A flat wall is the j side made infinitely heavy and not
+turning, with curvature ``1/r = 0`` (its normal does not turn).
 """
 
 from __future__ import annotations
 
 import inspect
 import math
-from typing import ClassVar, NamedTuple
+from typing import ClassVar
 
-import numba
 import numpy as np
+from numba import types
+from numba.extending import overload
 
 from granpipe._jit import JIT_OPTIONS, njit
 from granpipe.errors import ConfigError
 
 __all__ = [
     "ContactLaw",
-    "Kernels",
     "pair_force",
     "pair_force_jvp",
+    "perturbed_kinematics",
+    "perturbed_force",
     "law_leaf",
+    "law_has_spin",
+    "law_has_history",
     "registered_laws",
     "checked_parameter",
-    "select",
+    "evaluate_pair",
+    "evaluate_pair_jvp",
 ]
 
 _REGISTRY: dict[str, type] = {}
-
-
-@numba.njit(inline="always", **JIT_OPTIONS)
-def select(c, a, x):
-    """``a if c else x`` with both sides evaluated: how a leaf writes a choice between
-    smooth pieces if it is to run on four lanes too.
-
-    The four-lane path (:func:`granpipe.engine.simd.lanes_of`) runs the same function
-    with ``select`` bound to a lane-wise select, so every lane gives the bits of the
-    scalar leaf. Inlined in the scalar kernels; the sides must be free of side effects
-    (they are arithmetic, and numba's numpy error model makes a division by zero an
-    ``inf``, not an exception).
-    """
-    return a if c else x
 
 
 def pair_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
@@ -91,7 +88,7 @@ def pair_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi
     w_i, w_j : float [1/time]
         Spins (0 for a law without spin).
     m_eff : float [mass]
-        ``m_i m_j / (m_i + m_j)`` (``m_i`` against a wall disk).
+        ``m_i m_j / (m_i + m_j)`` (``m_i`` against a wall).
     xi : float [length]
         Shear history along ``t`` before this evaluation (0 for a law without history).
     dt : float [time]
@@ -115,35 +112,15 @@ def pair_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi
 
 
 def pair_force_jvp(
-    law,
-    nx,
-    ny,
-    curv,
-    lever_i,
-    lever_j,
-    vx,
-    vy,
-    w_i,
-    w_j,
-    m_eff,
-    f_n,
-    f_t,
-    piece,
-    dt,
-    ddx,
-    ddy,
-    dvx,
-    dvy,
-    dw_i,
-    dw_j,
-    dxi,
-):
+    law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
+    ddx, ddy, dvx, dvy, dw_i, dw_j, dxi,
+):  # fmt: skip
     """Directional derivative of :func:`pair_force` at the point it was evaluated.
 
-    The forward arguments are those of :func:`pair_force` (``curv = 1/r``) with its
-    outputs ``f_n, f_t, piece``; the perturbations are of the relative position ``dd``,
-    the relative velocity ``dv``, the spins and the prior history. Exact on each smooth
-    piece.
+    The forward arguments are those of :func:`pair_force` (``curv = 1/r``, 0 for a flat
+    wall) with its outputs ``f_n, f_t, piece``; the perturbations are of the relative
+    position ``dd``, the relative velocity ``dv``, the spins and the prior history.
+    Exact on each smooth piece.
 
     Returns
     -------
@@ -194,71 +171,64 @@ def perturbed_force(nx, ny, psi, dr, f_n, f_t, dfn, dft, lever_i, lever_j):
     )
 
 
+def _instance_class(law):
+    return law.instance_class if isinstance(law, types.BaseNamedTuple) else None
+
+
 def law_leaf(generic, params_type):
     """Decorator: the implementation of ``generic`` (:func:`pair_force` or
     :func:`pair_force_jvp`) for the parameter type ``params_type``.
 
-    The decorated function has the generic's signature and is compiled inline into the
-    generic passes whenever they run with an instance of ``params_type``::
+    The decorated function has the generic's signature and is compiled, with the project's
+    JIT options (:data:`granpipe._jit.JIT_OPTIONS`), into the passes whenever they run
+    with an instance of ``params_type``::
 
         @law_leaf(pair_force, StaticFrictionParams)
         def _force(law, nx, ny, delta, ...):
             ...
     """
-    from numba import types
-    from numba.extending import overload
 
     def register(impl):
         def typer(law, *args):
-            if isinstance(law, types.BaseNamedTuple) and law.instance_class is params_type:
-                return impl
-            return None
+            return impl if _instance_class(law) is params_type else None
 
         # numba checks that the typer and the implementation have one signature
         typer.__signature__ = inspect.signature(impl)
         typer.__name__ = f"{generic.__name__}_{params_type.__name__}"
-        overload(generic, jit_options={"cache": True, "fastmath": False})(typer)
+        overload(generic, jit_options=JIT_OPTIONS)(typer)
         return impl
 
     return register
 
 
-class Kernels(NamedTuple):
-    """What :class:`granpipe.engine.Simulation` calls for a law.
+def _capability(name):
+    """A function of a law's parameter object that numba folds to the constant its law
+    declares (``has_spin`` or ``has_history``): the passes branch on it at compile time."""
 
-    ``run_serial`` / ``run_parallel(law, n_steps, stride, tangent, dt, g, wd, fw, skin,
-    st, out_lam, out_nlam, out_speed, info)`` advance replicas (arrays with a leading
-    replica axis; ``law`` is :meth:`ContactLaw.params`); ``refresh(law, tangent, rebuild,
-    g, wd, fw, skin, st, dt, info)`` re-evaluates the forces after an edit;
-    ``set_tangent(law, g, wd, fw, skin, st, dt, info)`` evaluates the perturbations of a
-    tangent vector just written into the state, leaving the forward state as it was.
-    ``flat_walls`` and ``tangent`` say whether the passes handle flat walls and tangent
-    dynamics. ``profile(sim, state, repeats, nrep)`` times each pass on its own
-    (:mod:`granpipe.engine.profile`; ``None``: the law offers no profile).
-    ``parameters(law)`` is what the passes take as ``law`` (``None``:
-    :meth:`ContactLaw.params`).
-    """
+    def capability(law):
+        return bool(getattr(_law_of_params(type(law)), name))
 
-    run_serial: object
-    run_parallel: object
-    refresh: object
-    set_tangent: object
-    flat_walls: bool
-    tangent: bool
-    profile: object = None
-    parameters: object = None
+    capability.__name__ = f"law_{name}"
+
+    @overload(capability, jit_options=JIT_OPTIONS)
+    def _typer(law):
+        cls = _law_of_params(_instance_class(law))
+        if cls is None:
+            return None
+        flag = bool(getattr(cls, name))
+        return lambda law: flag
+
+    return capability
 
 
-def profile_hook(name: str):
-    """``Kernels.profile`` for the function ``name`` of :mod:`granpipe.engine.profile`
-    (imported when called: the profile module imports the passes)."""
+def _law_of_params(params_type):
+    return next((c for c in _REGISTRY.values() if c.params_type is params_type), None)
 
-    def profile(sim, state, repeats, nrep):
-        from granpipe.engine import profile as P
 
-        return getattr(P, name)(sim, state, repeats, nrep)
-
-    return profile
+law_has_spin = _capability("has_spin")
+law_has_spin.__doc__ = "Whether the law of parameter object ``law`` has spin (a constant)."
+law_has_history = _capability("has_history")
+law_has_history.__doc__ = "Whether the law of ``law`` keeps a shear history (a constant)."
 
 
 class ContactLaw:
@@ -266,15 +236,15 @@ class ContactLaw:
 
     A subclass declares ``name``, ``law_id`` (a small integer stored in states, so a state
     is never run under another law), the capabilities ``has_spin`` and ``has_history``,
-    and implements :meth:`params` (the parameter object of its kernels), :meth:`leaf_params`
-    (the parameter type of its leaves, if that differs) and, unless the generic passes
-    suffice, :meth:`kernels`. Subclasses register themselves.
+    its ``params_type`` (the NamedTuple its leaves are registered for), and implements
+    :meth:`params`. Subclasses register themselves.
     """
 
     name: ClassVar[str] = ""
     law_id: ClassVar[int] = -1
     has_spin: ClassVar[bool] = False
     has_history: ClassVar[bool] = False
+    params_type: ClassVar[type] = type(None)
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -285,13 +255,14 @@ class ContactLaw:
             _REGISTRY[cls.name] = cls
 
     def params(self):
-        """The parameter object the kernels take (an array or the law's NamedTuple)."""
+        """The instance of :attr:`params_type` the leaves take at disk pairs."""
         raise NotImplementedError
 
-    def leaf_params(self):
-        """The instance of the law's parameter type that its leaves take (the generic
-        passes run with it)."""
-        return self.params()
+    def wall_params(self) -> tuple:
+        """The leaves' parameters at the three flat walls (left, right, bottom); the pair
+        parameters by default (a law whose walls grip differently overrides it)."""
+        p = self.params()
+        return (p, p, p)
 
     def pair(self, d, v, spin_i, spin_j, radius_i, radius_j, m_eff, xi=0.0, dt=0.0):
         """One contact through the law's leaf (:func:`pair_force`), for tests and studies.
@@ -313,14 +284,12 @@ class ContactLaw:
         (5,) float64 ``(F_x, F_y, tau_i, tau_j, xi_new)`` (zeros when apart), and the
         piece (int; -1 when apart).
         """
-        from granpipe.engine.generic import evaluate_pair
-
         g = _pair_geometry(d, radius_i, radius_j)
         if g is None:
             return np.zeros(5), -1
         nx, ny, r, delta, lev_i, lev_j = g
         out = evaluate_pair(
-            self.leaf_params(), nx, ny, delta, lev_i, lev_j, float(v[0]), float(v[1]),
+            self.params(), nx, ny, delta, lev_i, lev_j, float(v[0]), float(v[1]),
             float(spin_i), float(spin_j), float(m_eff), float(xi), float(dt),
         )  # fmt: skip
         return np.array(out[:5]), int(out[7])
@@ -329,31 +298,50 @@ class ContactLaw:
         """Jacobian (5, 7) of :meth:`pair`'s ``(F_x, F_y, tau_i, tau_j, xi_new)`` with respect
         to ``(d_x, d_y, v_x, v_y, spin_i, spin_j, xi)``, from the law's Jacobian leaf
         (:func:`pair_force_jvp`; exact on the piece the contact is on)."""
-        from granpipe.engine.generic import evaluate_pair, evaluate_pair_jvp
-
         nx, ny, r, delta, lev_i, lev_j = _pair_geometry(d, radius_i, radius_j)
-        law = self.leaf_params()
-        fwd = (float(v[0]), float(v[1]), float(spin_i), float(spin_j), float(m_eff))
-        out = evaluate_pair(law, nx, ny, delta, lev_i, lev_j, *fwd, float(xi), float(dt))
-        jac = np.zeros((5, 7))
-        for k, e in enumerate(np.eye(7)):
-            jac[:, k] = evaluate_pair_jvp(
-                law, nx, ny, 1.0 / r, lev_i, lev_j, *fwd, out[5], out[6], out[7], float(dt), *e
-            )
-        return jac
+        return _jacobian(
+            self.params(), (nx, ny, delta, lev_i, lev_j), 1.0 / r, v, spin_i, spin_j, m_eff,
+            xi, dt,
+        )  # fmt: skip
 
-    def wall_leaf_params(self) -> tuple:
-        """The leaves' parameters at the three flat walls (left, right, bottom), for the
-        generic passes' wall contacts; the pair parameters by default (a law whose walls
-        grip differently overrides it)."""
-        p = self.leaf_params()
-        return (p, p, p)
+    def wall_pair(self, h, v, spin, radius, mass, normal, xi=0.0, dt=0.0, wall=2):
+        """A disk's contact with flat wall ``wall`` (0 left, 1 right, 2 bottom; its
+        parameters from :meth:`wall_params`) at distance ``h``, unit ``normal`` into the
+        box: the pair law with the wall's side infinitely heavy and not turning, as the
+        passes evaluate it (``m_eff = mass``, lever ``radius - overlap/2``).
 
-    def kernels(self):
-        """The law's :class:`Kernels`: the generic scalar passes unless the law has its own."""
-        from granpipe.engine.generic import GENERIC_KERNELS
+        Returns
+        -------
+        (3,) float64 ``(F_x, F_y, tau)`` (zeros when apart), ``xi_new``, and the piece.
+        """
+        if h - radius > 0:
+            return np.zeros(3), 0.0, -1
+        n = np.asarray(normal, dtype=np.float64)
+        out = evaluate_pair(
+            self.wall_params()[wall], n[0], n[1], h - radius, radius - 0.5 * (radius - h), 0.0,
+            float(v[0]), float(v[1]), float(spin), 0.0, float(mass), float(xi), float(dt),
+        )  # fmt: skip
+        return np.array([out[0], out[1], out[2]]), out[4], int(out[7])
 
-        return GENERIC_KERNELS
+    def wall_pair_jacobian(self, h, v, spin, radius, mass, normal, xi=0.0, dt=0.0, wall=2):
+        """Jacobian (5, 7) of the wall contact (:meth:`wall_pair`, outputs ``(F_x, F_y,
+        tau, 0, xi_new)``) with respect to the disk's ``(x, y, v_x, v_y, spin)``, the wall's
+        spin (unused) and ``xi``."""
+        n = np.asarray(normal, dtype=np.float64)
+        geometry = (n[0], n[1], h - radius, radius - 0.5 * (radius - h), 0.0)
+        return _jacobian(self.wall_params()[wall], geometry, 0.0, v, spin, 0.0, mass, xi, dt)
+
+
+def _jacobian(law, geometry, curv, v, spin_i, spin_j, m_eff, xi, dt):
+    nx, ny, delta, lev_i, lev_j = geometry
+    fwd = (float(v[0]), float(v[1]), float(spin_i), float(spin_j), float(m_eff))
+    out = evaluate_pair(law, nx, ny, delta, lev_i, lev_j, *fwd, float(xi), float(dt))
+    jac = np.zeros((5, 7))
+    for k, e in enumerate(np.eye(7)):
+        jac[:, k] = evaluate_pair_jvp(
+            law, nx, ny, curv, lev_i, lev_j, *fwd, out[5], out[6], out[7], float(dt), *e
+        )
+    return jac
 
 
 def _pair_geometry(d, radius_i, radius_j):
@@ -372,6 +360,24 @@ def _pair_geometry(d, radius_i, radius_j):
     )
 
 
+@njit
+def evaluate_pair(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
+    """:func:`pair_force` called from Python (tests, studies)."""
+    return pair_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt)
+
+
+@njit
+def evaluate_pair_jvp(
+    law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
+    ddx, ddy, dvx, dvy, dw_i, dw_j, dxi,
+):  # fmt: skip
+    """:func:`pair_force_jvp` called from Python."""
+    return pair_force_jvp(
+        law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
+        ddx, ddy, dvx, dvy, dw_i, dw_j, dxi,
+    )  # fmt: skip
+
+
 def checked_parameter(name: str, value, allow_zero: bool = True) -> float:
     """``value`` as a float, or a :class:`~granpipe.errors.ConfigError` naming ``name``
     unless it is finite and ``>= 0`` (``> 0`` without ``allow_zero``): the check every
@@ -385,8 +391,3 @@ def checked_parameter(name: str, value, allow_zero: bool = True) -> float:
 def registered_laws() -> dict[str, type]:
     """``{name: class}`` of every law defined so far (import :mod:`granpipe.engine` first)."""
     return dict(_REGISTRY)
-
-
-def as_array(params) -> np.ndarray:
-    """A law's parameters as a float64 vector (for provenance and hashing)."""
-    return np.asarray(tuple(params), dtype=np.float64)

@@ -1,35 +1,38 @@
 """Where the engine keeps things: the rows of the state arrays and of the pair buffer,
 and the order of the storage tuple every stepping kernel takes.
 
-Defined once, here: the passes of :mod:`granpipe.engine.kernels`, the generic passes of
-:mod:`granpipe.engine.generic`, the four-lane code of :mod:`granpipe.engine.simd` and
-:class:`granpipe.engine.Simulation` all import their row numbers from this module.
+Defined once, here, for every module of the engine (:mod:`granpipe.engine.neighbours`,
+:mod:`granpipe.engine.walls`, :mod:`granpipe.engine.passes`,
+:class:`granpipe.engine.Simulation`).
 """
 
 # rows of vec (NV, N, 2)
 POS, VEL, FRC, POS_BUILD, WALL_REF, T_POS, T_VEL, T_FRC, IM2, MOB2, MG = range(11)
 NV = 11
-# rows of sca (NS, N); T_SPIN, T_TORQUE: the tangent vector's spin and torque (generic
-# passes of laws with spin, granpipe.engine.generic)
+# rows of sca (NS, N): T_SPIN, T_TORQUE are the tangent vector's spin and torque (laws
+# with spin); XI_LEFT .. XI_BOTTOM the shear histories of each disk against the three
+# flat walls and T_XI_LEFT .. their perturbations (laws with history)
 RADIUS, INV_MASS, INV_INERTIA, SPIN, TORQUE, T_PREV, XI_LEFT, XI_RIGHT, XI_BOTTOM = range(9)
 T_SPIN, T_TORQUE = 9, 10
-# the perturbations of the shear histories against the three flat walls (generic passes)
 T_XI_LEFT, T_XI_RIGHT, T_XI_BOTTOM = 11, 12, 13
 NS = 14
 # rows of ivec (NI, N)
 IS_WALL, CONTACTS, CELL_ITEMS, CELL_OF, PAIR_CONTACTS = range(5)
-# the smooth piece (plus one; 0: apart) of each disk's contact with the three flat walls
-# at the last evaluation (generic passes; the tangent-only evaluation reuses them)
-PIECE_LEFT, PIECE_RIGHT, PIECE_BOTTOM = 5, 6, 7
-NI = 8
+NI = 5
 # rows of pair_c (NPC, P): a_i + a_j, overlap bound, m_eff, a_i - a_j
 P_SUM, P_LIM, P_MEFF, P_DIFF = range(4)
 NPC = 4
-# rows of the pair buffer (NB, P)
-B_DX, B_DY, B_DVX, B_DVY, B_E0, B_E1, B_E2, B_E3, B_FX, B_FY, B_G0, B_G1 = range(12)
-# rows of the pair constants and history, copied along when the pass is compacted
-B_S, B_L, B_M, B_D, B_XI = range(12, 17)
-NB = 17
+# rows of the pair buffer (NB, P), written by the gather and read by the law's rows:
+# relative position and velocity, the tangent vector's differences, the spins and their
+# perturbations (laws with spin)
+B_DX, B_DY, B_DVX, B_DVY, B_EX, B_EY, B_EVX, B_EVY, B_WI, B_WJ, B_DWI, B_DWJ = range(12)
+# written by the law's rows and read by the scatter: force on i, torques on i and j, and
+# their perturbations
+B_FX, B_FY, B_TI, B_TJ, B_GX, B_GY, B_GTI, B_GTJ = range(12, 20)
+# the pair constants and histories, copied along when the pass is compacted; the
+# histories an evaluation that keeps them (a refresh) computes and drops
+B_S, B_L, B_M, B_D, B_XI, B_DXI, B_XO, B_DXO = range(20, 28)
+NB = 28
 # rows of pair_ij (3, P): owner i, partner j, and (compacted passes) the pair index k
 PI, PJ, PK = range(3)
 # clock (NCLOCK,): time origin, wall angle, its angular velocity over the last step, the
@@ -42,7 +45,7 @@ OVERLAP_FRAC = 6
 NCLOCK = 7
 # counters (NCOUNT,)
 STEP, N_PAIRS, N_REBUILDS, FORCE_REBUILD, LOG2_SCALE, CONTACT_SUM, STEPS_RUN, N_WALLS = range(8)
-LAST_PAIR_CONTACTS = 8  # contacts among listed pairs at the last evaluation (pass choice)
+LAST_PAIR_CONTACTS = 8  # contacts among listed pairs at the last evaluation (compaction)
 COUNT_STALE = 9  # the per-disk pair-contact counts must be recomputed (list rebuilt)
 NEAR_WALLS = 10  # disks in the near-wall list (ivec[CELL_ITEMS]); -1: to be rebuilt
 NCOUNT = 11
@@ -51,16 +54,10 @@ OK, NONFINITE, DEEP_OVERLAP, LIST_OVERFLOW, TANGENT_NONFINITE = range(5)
 # "other" codes for flat walls in info
 LEFT_WALL, RIGHT_WALL, BOTTOM_WALL = -1, -2, -3
 
-# The fused four-lane drum pass (granpipe.engine.simd) reuses rows of the pair buffer for
-# what it hands from its geometric half to its law half: the unit normal where the gather
-# puts the relative position, the overlap and 1/r where the forces go afterwards.
-B_NX, B_NY = B_DX, B_DY
-B_DELTA, B_INV_R = B_FX, B_FY
-
 STORAGE = (
     "vec", "sca", "ivec", "walls", "pair_start", "pair_ij", "pair_c", "pair_xi", "pair_dxi",
-    "old_start", "old_j", "old_xi", "old_dxi", "buf", "touch", "cell_count", "cell_start",
-    "clock", "counters",
+    "old_start", "old_j", "old_xi", "old_dxi", "buf", "touch", "flip", "cell_count",
+    "cell_start", "clock", "counters",
 )  # fmt: skip
 """Storage arrays every stepping kernel takes, as one tuple in this order
-(``Simulation``'s ``_storage``; ``kernels._at`` picks one replica of it)."""
+(``Simulation``'s ``_storage``; ``passes.replica_of`` picks one replica of it)."""

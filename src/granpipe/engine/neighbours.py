@@ -23,8 +23,9 @@ import math
 import numpy as np
 
 from granpipe._jit import njit
+from granpipe.engine import layout as L
 
-__all__ = ["pair_capacity", "cell_capacity", "build_pairs", "carry_history"]
+__all__ = ["pair_capacity", "cell_capacity", "build_pairs", "carry_history", "rebuild"]
 
 
 def pair_capacity(radii, skin, max_overlap=0.5) -> int:
@@ -180,3 +181,84 @@ def carry_history(old_start, old_j, old_xi, new_start, new_j, new_xi):
                 new_xi[k] = old_xi[p]
             else:
                 new_xi[k] = 0.0
+
+
+@njit
+def _pair_constants(sca, pair_start, pair_ij, pair_c, npairs, overlap_frac):
+    """Owner index and per-pair constants of a freshly built list (the overlap bound is
+    ``overlap_frac`` times the smaller radius)."""
+    radius = sca[L.RADIUS]
+    inv_mass = sca[L.INV_MASS]
+    n = pair_start.shape[0] - 1
+    pi = pair_ij[L.PI]
+    pj = pair_ij[L.PJ]
+    for i in range(n):
+        for k in range(pair_start[i], pair_start[i + 1]):
+            pi[k] = i
+    for k in range(npairs):
+        i = pi[k]
+        j = pj[k]
+        ai = radius[i]
+        aj = radius[j]
+        pair_c[L.P_SUM, k] = ai + aj
+        pair_c[L.P_LIM, k] = overlap_frac * min(ai, aj)
+        pair_c[L.P_MEFF, k] = 1.0 / (inv_mass[i] + inv_mass[j])
+        pair_c[L.P_DIFF, k] = ai - aj
+
+
+@njit
+def rebuild(vec, sca, ivec, skin, st, history):
+    """Rebuild the neighbour list of one replica (``st``: its storage tuple,
+    :data:`granpipe.engine.layout.STORAGE`) at the current positions; with ``history``
+    (laws with shear history) carry each kept pair's history and its perturbation over
+    (:func:`carry_history`). Returns False on a list overflow.
+    """
+    # fmt: off
+    (_vec, _sca, _ivec, _walls, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, old_start,
+     old_j, old_xi, old_dxi, _buf, _touch, _flip, cell_count, cell_start, clock,
+     counters) = st
+    # fmt: on
+    npairs = counters[L.N_PAIRS]
+    pj = pair_ij[L.PJ]
+    if history:
+        for i in range(pair_start.shape[0]):
+            old_start[i] = pair_start[i]
+        for k in range(npairs):
+            old_j[k] = pj[k]
+            old_xi[k] = pair_xi[k]
+            old_dxi[k] = pair_dxi[k]
+    counters[L.NEAR_WALLS] = -1  # the cell pass overwrites the near-wall list
+    m = build_pairs(
+        vec[L.POS],
+        sca[L.RADIUS],
+        ivec[L.IS_WALL],
+        skin,
+        cell_count,
+        cell_start,
+        ivec[L.CELL_ITEMS],
+        ivec[L.CELL_OF],
+        pair_start,
+        pj,
+    )
+    if m < 0:
+        return False
+    _pair_constants(sca, pair_start, pair_ij, pair_c, m, clock[L.OVERLAP_FRAC])
+    p = vec[L.POS]
+    b = vec[L.POS_BUILD]
+    for i in range(p.shape[0]):
+        b[i, 0] = p[i, 0]
+        b[i, 1] = p[i, 1]
+    clock[L.THETA_BUILD] = clock[L.THETA]
+    counters[L.N_PAIRS] = m
+    counters[L.N_REBUILDS] += 1
+    counters[L.FORCE_REBUILD] = 0
+    counters[L.COUNT_STALE] = 1
+    if history:
+        if npairs == 0:
+            for k in range(m):
+                pair_xi[k] = 0.0
+                pair_dxi[k] = 0.0
+        else:
+            carry_history(old_start, old_j, old_xi, pair_start, pj, pair_xi)
+            carry_history(old_start, old_j, old_dxi, pair_start, pj, pair_dxi)
+    return True

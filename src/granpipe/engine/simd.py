@@ -1,6 +1,11 @@
-"""Explicit 4-wide vector operations for the pair passes (numba intrinsics).
+"""Explicit vector operations of the passes that know no contact law (numba intrinsics).
 
-LLVM does not vectorise the gathers of :mod:`granpipe.engine.kernels` (the pair indices
+The gather of the pair rows (:func:`gather4`, :func:`gather4_spins`), the compaction's
+four-pair touch test (:func:`touch_bits4`), and the per-disk passes of a step over the
+flat ``2N`` rows (:func:`kick8`, :func:`tangent8`, :func:`speed2_lanes`); the passes of
+:mod:`granpipe.engine.passes` call them for every law.
+
+LLVM does not vectorise the gathers of :mod:`granpipe.engine.passes` (the pair indices
 are data, and numba leaves LLVM's SLP vectoriser off by default since it miscompiled
 code: numba PR #8852, issues #8705 and #8681), so a scalar gather costs eight loads,
 four subtractions and four stores per pair. :func:`gather4` takes four listed pairs at
@@ -20,13 +25,9 @@ included, so an edit here recompiles the kernels that use it in the next process
 
 from __future__ import annotations
 
-import types as pytypes
-
 from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
-
-from granpipe.engine.layout import B_DELTA, B_DVX, B_DVY, B_E0, B_INV_R, B_NX, B_NY
 
 __all__ = [
     "gather4",
@@ -40,6 +41,7 @@ __all__ = [
     "tangent8",
     "tangent8_first",
     "tangent8_last",
+    "touch_bits4",
 ]
 
 _F64 = ir.DoubleType()
@@ -67,7 +69,7 @@ def speed2_lanes(typingctx, v, f, im, mob, h, m):
     ``sum_k (u_k * u_k) * mob_k`` for ``k = c, c + 4, ... < m`` in increasing ``k``, with
     ``u_k = v_k + h * (f_k * im_k)`` (``m`` a multiple of 4; the caller adds the rest).
 
-    The four running sums of :func:`granpipe.engine.kernels._v2`, the same IEEE
+    The four running sums of :func:`granpipe.engine.passes.final_kick`, the same IEEE
     operations in the same order, held in one ``<4 x double>``: LLVM does not vectorise
     the four scalar sums (its SLP vectoriser is off in numba), and they ran at three
     cycles per component.
@@ -107,7 +109,7 @@ def speed2_lanes(typingctx, v, f, im, mob, h, m):
 _V8 = ir.VectorType(_F64, 8)
 _I64x4 = ir.VectorType(_I64, 4)
 _I64x8 = ir.VectorType(_I64, 8)
-# a half-step velocity is bad unless |w| < BIG (kernels._BIG is this one)
+# a half-step velocity is bad unless |w| < BIG (the bound of every per-disk pass)
 BIG = 1e300
 
 
@@ -153,7 +155,7 @@ def _arrays(context, builder, sig, args, count):
 
 def _kick8(finish, want_v2):
     """Intrinsic ``(p, v, f, im, mob, b, h, dt, thr2, m) -> (s0, s1, s2, s3, bad, moved)``:
-    the per-disk pass of a step (:func:`granpipe.engine.kernels._kick_drift`) over the
+    the per-disk pass of a step (:func:`granpipe.engine.passes.kick_drift`) over the
     flat ``2N`` rows, components ``k < m`` (``m`` a multiple of 8), four disks (eight
     components, one 8-wide vector) a group.
 
@@ -225,7 +227,7 @@ kick8_v2 = _kick8(True, True)
 
 def _tangent8(mode):
     """Intrinsic ``(tr, tv, tf, im, mob, prev, contacts, h, dt, n) -> 12 sums``: the
-    tangent vector's per-disk pass (:func:`granpipe.engine.kernels._tangent_pass`) over
+    tangent vector's per-disk pass (:func:`granpipe.engine.passes.tangent_kicks`) over
     the disks ``i < n`` (``n`` a multiple of 4), four disks (one 8-wide vector of flat
     components) a group.
 
@@ -297,26 +299,7 @@ tangent8 = _tangent8(1)
 tangent8_last = _tangent8(2)
 
 
-# --------------------------------------------------------------------------- lanes DSL
-
-
-class _Mask:
-    """Four lanes of a comparison result (``<4 x i1>``)."""
-
-    __slots__ = ("b", "v")
-
-    def __init__(self, b, v):
-        self.b = b
-        self.v = v
-
-    def __and__(self, o):
-        return _Mask(self.b, self.b.and_(self.v, o.v))
-
-    def __or__(self, o):
-        return _Mask(self.b, self.b.or_(self.v, o.v))
-
-    def __bool__(self):
-        raise TypeError("a contact law run on four lanes may not branch on a lane value")
+# --------------------------------------------------------------------------- lanes
 
 
 class _Lanes:
@@ -341,50 +324,15 @@ class _Lanes:
     def __add__(self, o):
         return self._op("fadd", self.v, self._of(o))
 
-    def __radd__(self, o):
-        return self._op("fadd", self._of(o), self.v)
-
     def __sub__(self, o):
         return self._op("fsub", self.v, self._of(o))
-
-    def __rsub__(self, o):
-        return self._op("fsub", self._of(o), self.v)
 
     def __mul__(self, o):
         return self._op("fmul", self.v, self._of(o))
 
-    def __rmul__(self, o):
-        return self._op("fmul", self._of(o), self.v)
-
-    def __truediv__(self, o):
-        return self._op("fdiv", self.v, self._of(o))
-
-    def __rtruediv__(self, o):
-        return self._op("fdiv", self._of(o), self.v)
-
-    def __neg__(self):
-        return _Lanes(self.b, self.b.fneg(self.v))
-
-    def __abs__(self):
-        return _Lanes(self.b, _call(self.b, "llvm.fabs.v4f64", [self.v]))
-
-    def _cmp(self, op, o):
-        return _Mask(self.b, self.b.fcmp_ordered(op, self.v, self._of(o)))
-
-    def __lt__(self, o):
-        return self._cmp("<", o)
-
-    def __le__(self, o):
-        return self._cmp("<=", o)
-
     def __gt__(self, o):
-        return self._cmp(">", o)
-
-    def __ge__(self, o):
-        return self._cmp(">=", o)
-
-    def __eq__(self, o):
-        return self._cmp("==", o)
+        """Lane comparison ``self > o`` (ordered), an ``<4 x i1>``."""
+        return self.b.fcmp_ordered(">", self.v, self._of(o))
 
     __hash__ = None
 
@@ -395,31 +343,6 @@ def _call(b, name, args):
     fnty = ir.FunctionType(vt, [vt] * len(args))
     fn = b.module.globals.get(name) or ir.Function(b.module, fnty, name=name)
     return b.call(fn, args)
-
-
-def _select(c, a, x):
-    """``a if c else x`` on lanes (both sides are evaluated: the laws have no side effects)."""
-    if not isinstance(c, _Mask):
-        raise TypeError("a lane select needs a lane comparison")
-    ref = a if isinstance(a, _Lanes) else x
-    if not isinstance(ref, _Lanes):
-        ref = _Lanes(c.b, ir.Constant(_V4, [0.0] * 4))
-    return _Lanes(c.b, c.b.select(c.v, ref._of(a), ref._of(x)))
-
-
-def lanes_of(fn):
-    """The scalar law ``fn`` (a jitted leaf of :mod:`granpipe.engine.laws`) run on four lanes.
-
-    The leaf's own code object is called with its global ``select``
-    (:func:`granpipe.engine.contract.select`) bound to a lane select: the vector kernels
-    evaluate the very expressions of the scalar law, in the same order, so lane by lane
-    they give the same bits. A leaf that branches on a value (``if``, ``a if c else x``)
-    cannot run on lanes: the lane comparison refuses to be a truth value.
-    """
-    py = getattr(fn, "py_func", fn)
-    env = dict(py.__globals__)
-    env["select"] = _select
-    return pytypes.FunctionType(py.__code__, env, py.__name__, py.__defaults__, py.__closure__)
 
 
 # --------------------------------------------------------------------------- pair frames
@@ -469,10 +392,6 @@ class _Frame:
             return self.k
         return [self.b.add(kl, off) for kl in self.k]
 
-    def size(self, name):
-        """Length of the 1-D array argument ``name`` (i64)."""
-        return self.b.extract_value(self.a[name].shape, 0)
-
     def row(self, r):
         """Offset of row ``r`` of a flat (rows, cap) array (``cap`` an argument)."""
         return self.b.mul(ir.Constant(_I64, r), self.val["cap"])
@@ -489,9 +408,6 @@ class _Frame:
             for lane, kl in enumerate(at):
                 v = self.b.insert_element(v, self.scalar(name, kl), ir.Constant(_I32, lane))
         return _Lanes(self.b, v) if elem is _F64 else v
-
-    def splat(self, name, i):
-        return _Lanes(self.b, _bcast(self.b, self.scalar(name, ir.Constant(_I64, i)), 4))
 
     def _diffs(self, name, i, j, vt):
         """Per pair, ``name[w i .. w i + w-1] - name[w j .. w j + w-1]`` as one vector of
@@ -518,19 +434,6 @@ class _Frame:
             for c in (0, 1)
         ]
 
-    def mask_i64(self, m):
-        """A lane mask as ``<4 x i64>`` 0/1 (lanes past the last valid pair cleared)."""
-        v = m.v
-        if not self.full:
-            for lane in range(4):
-                at = ir.Constant(_I32, lane)
-                bit = self.b.and_(self.b.extract_element(v, at), self.valid[lane])
-                v = self.b.insert_element(v, bit, at)
-        return self.b.zext(v, ir.VectorType(_I64, 4))
-
-    def count(self, m64):
-        return _hsum(self.b, m64, 4)
-
     def store_lanes(self, name, v, off=None):
         """``name[off + k .. off + k+3] = v`` (lanes or an integer vector)."""
         b = self.b
@@ -548,72 +451,13 @@ class _Frame:
                     align=8,
                 )
 
-    def scatter_pairs(self, i, j, prev, sums):
-        """Add pair vectors to per-disk (flat ``2N``) arrays, lane by lane in list order.
-
-        ``sums`` lists ``(name, x, y, acc)``: ``name[2j:2j+2] -= (x, y)`` goes to memory
-        at once; the owner's share is added to the running sum ``acc`` (``<2 x double>``)
-        of owner ``prev``, which goes to memory only when the owner changes (consecutive
-        pairs share the owner; adding each to memory would chain loads on stores). This is
-        the order of ``kernels._scatter``. Returns the new ``prev`` and sums.
-        """
-        b = self.b
-        m4 = ir.VectorType(_I32, 4)
-        two = ir.Constant(_I64, 2)
-        zero2 = ir.Constant(_V2, [0.0, 0.0])
-        halves = []
-        for _name, x, y, _acc in sums:
-            lo = b.shuffle_vector(x.v, y.v, ir.Constant(m4, [0, 4, 1, 5]))
-            hi = b.shuffle_vector(x.v, y.v, ir.Constant(m4, [2, 6, 3, 7]))
-            halves.append((lo, hi))
-        accs = [acc for _name, _x, _y, acc in sums]
-
-        def rmw(name, idx, op, x):
-            p = b.bitcast(self.ptr(name, b.mul(idx, two)), _V2.as_pointer())
-            b.store(getattr(b, op)(b.load(p, align=8), x), p, align=8)
-
-        for lane in range(4):
-            sel = ir.Constant(ir.VectorType(_I32, 2), [0, 1] if lane % 2 == 0 else [2, 3])
-            pairs = [b.shuffle_vector(h[lane // 2], h[lane // 2], sel) for h in halves]
-            new_owner = b.icmp_unsigned("!=", i[lane], prev)
-            if not self.full:
-                new_owner = b.and_(new_owner, self.valid[lane])
-            with b.if_then(new_owner):
-                for (name, *_), acc in zip(sums, accs, strict=True):
-                    rmw(name, prev, "fadd", acc)
-            summed = [
-                b.fadd(b.select(new_owner, zero2, acc), x)
-                for acc, x in zip(accs, pairs, strict=True)
-            ]
-            if self.full:
-                for (name, *_), x in zip(sums, pairs, strict=True):
-                    rmw(name, j[lane], "fsub", x)
-                accs = summed
-                prev = i[lane]
-            else:
-                with b.if_then(self.valid[lane]):
-                    for (name, *_), x in zip(sums, pairs, strict=True):
-                        rmw(name, j[lane], "fsub", x)
-                accs = [
-                    b.select(self.valid[lane], a, acc) for a, acc in zip(summed, accs, strict=True)
-                ]
-                prev = b.select(self.valid[lane], i[lane], prev)
-        return prev, accs
-
-
-def _sqrt(x):
-    return _Lanes(x.b, _call(x.b, "llvm.sqrt.v4f64", [x.v]))
-
-
-# rows of the pair buffer (kernels.B_*) through which the two halves of a pair pass talk
-
 
 @intrinsic
 def touch_bits4(typingctx, pos, pi, pj, k, ssum):
     """``sum over lanes c of 2**c`` for the listed pairs ``k .. k+3`` that are not apart,
     i.e. ``not (dx² + dy² > ssum²)`` with ``(dx, dy)`` from the flat ``2N`` positions
     ``pos`` (the test, and its treatment of NaN, of the scalar compaction in
-    :func:`granpipe.engine.kernels._gather_compact`; the same IEEE operations). Zero when
+    :func:`granpipe.engine.passes.gather_compact`; the same IEEE operations). Zero when
     all four are apart: the compacted gather skips such groups without a branch per pair.
     """
     sig = types.int64(pos, pi, pj, k, ssum)
@@ -623,7 +467,7 @@ def touch_bits4(typingctx, pos, pi, pj, k, ssum):
         dx, dy = fr.xy_diff("pos", fr.index("pi"), fr.index("pj"))
         s = fr.lanes("ssum")
         apart = dx * dx + dy * dy > s * s
-        bits = builder.bitcast(apart.v, ir.IntType(4))
+        bits = builder.bitcast(apart, ir.IntType(4))
         return builder.zext(builder.xor(bits, ir.Constant(ir.IntType(4), 15)), _I64)
 
     return sig, codegen
@@ -676,139 +520,3 @@ gather4 = _gather4(True, False)
 gather4_tail = _gather4(False, False)
 gather4_spins = _gather4(True, True)
 gather4_spins_tail = _gather4(False, True)
-
-
-_FRONT_ARGS = (
-    "p",
-    "v",
-    "tp",
-    "tv",
-    "pi",
-    "pj",
-    "k",
-    "nvalid",
-    "ssum",
-    "slim",
-    "touch",
-    "rows",
-    "cap",
-)
-
-
-def _pair_front4(full):
-    """Intrinsic ``(p, v, tp, tv, pi, pj, k, nvalid, ssum, slim, touch, rows, cap) -> code``:
-    the geometric half of a pair pass for the listed pairs ``k .. k+nvalid-1``.
-
-    From the flat ``2N`` positions ``p`` and velocities ``v`` (as :func:`gather4`) it
-    forms the relative position and velocity, ``r``, ``1/r``, the unit normal and
-    ``delta = r - (a_i + a_j)``, and writes them to rows of the flat pair buffer ``rows``
-    (row length ``cap``) for :func:`_drum_back4`; with ``tp`` non-empty (the tangent
-    vector's position and velocity parts ``tp, tv``) also the relative tangent vector.
-    It stores the touch flags (``r² <= (a_i + a_j)²``) and returns ``touching + 8 deep +
-    64 changed``: the counts of touching pairs and of pairs deeper than their bound
-    ``slim``, and the lanes whose touch flag changed (bit ``c`` for pair ``k + c``).
-    """
-
-    def typer(typingctx, p, v, tp, tv, pi, pj, k, nvalid, ssum, slim, touch, rows, cap):
-        sig = types.int64(p, v, tp, tv, pi, pj, k, nvalid, ssum, slim, touch, rows, cap)
-
-        def codegen(context, builder, signature, args):
-            fr = _Frame(context, builder, signature, args, _FRONT_ARGS, full)
-            i = fr.index("pi")
-            j = fr.index("pj")
-            dx, dy = fr.xy_diff("p", i, j)
-            dvx, dvy = fr.xy_diff("v", i, j)
-            s = fr.lanes("ssum")
-            lim = fr.lanes("slim")
-            r2 = dx * dx + dy * dy
-            r = _sqrt(r2)
-            inv_r = 1.0 / r
-            delta = r - s
-            t64 = fr.mask_i64(r2 <= s * s)
-            old = fr.lanes("touch", elem=_I64)
-            ch = fr.mask_i64(_Mask(builder, builder.icmp_unsigned("!=", old, t64)))
-            changed = builder.extract_element(ch, ir.Constant(_I32, 0))
-            for lane in range(1, 4):
-                bit = builder.extract_element(ch, ir.Constant(_I32, lane))
-                changed = builder.or_(changed, builder.shl(bit, ir.Constant(_I64, lane)))
-            fr.store_lanes("touch", t64)
-            bad = fr.count(fr.mask_i64(-delta > lim))
-            out = [(B_NX, dx * inv_r), (B_NY, dy * inv_r), (B_DVX, dvx), (B_DVY, dvy)]
-            out += [(B_DELTA, delta), (B_INV_R, inv_r)]
-            for row, v in out:
-                fr.store_lanes("rows", v, fr.row(row))
-            with builder.if_then(builder.icmp_signed(">", fr.size("tp"), ir.Constant(_I64, 0))):
-                e = fr.xy_diff("tp", i, j) + fr.xy_diff("tv", i, j)
-                for c, val in enumerate(e):
-                    fr.store_lanes("rows", val, fr.row(B_E0 + c))
-            code = builder.add(fr.count(t64), builder.mul(bad, ir.Constant(_I64, 8)))
-            return builder.add(code, builder.mul(changed, ir.Constant(_I64, 64)))
-
-        return sig, codegen
-
-    return intrinsic(typer)
-
-
-_BACK_ARGS = ("rows", "cap", "k", "nvalid", "f", "tf", "pi", "pj", "touch", "law", "prev")
-
-
-def _drum_back4(full, tangent):
-    """Intrinsic ``(rows, cap, k, nvalid, f, tf, pi, pj, touch, law, prev, ax, ay, bx, by)
-    -> (prev, ax, ay, bx, by)``: the drum law (:func:`granpipe.engine.laws.drum_force`,
-    and with ``tangent`` its derivative ``drum_force_jvp`` along the tangent vector) on
-    the pairs ``k .. k+nvalid-1`` from the rows :func:`_pair_front4` wrote, zero where
-    the touch flag is off, added to the forces ``f`` (and perturbations ``tf``), flat
-    ``2N``. ``prev`` and the ``a``/``b`` pairs are the running owner sums of
-    :meth:`_Frame.scatter_pairs`; the caller starts them at the first owner and zero, and
-    adds the last sums to that owner's row when the pass ends.
-    """
-    from granpipe.engine.laws import drum_force, drum_force_jvp
-
-    force4 = lanes_of(drum_force)
-    jvp4 = lanes_of(drum_force_jvp)
-
-    def typer(typingctx, rows, cap, k, nvalid, f, tf, pi, pj, touch, law, prev, ax, ay, bx, by):
-        ret = types.Tuple((types.int64,) + (types.float64,) * 4)
-        sig = ret(rows, cap, k, nvalid, f, tf, pi, pj, touch, law, prev, ax, ay, bx, by)
-
-        def codegen(context, builder, signature, args):
-            fr = _Frame(context, builder, signature, args, _BACK_ARGS, full)
-            rows = (B_NX, B_NY, B_DVX, B_DVY, B_DELTA, B_INV_R)
-            nx, ny, dvx, dvy, delta, inv_r = (fr.lanes("rows", fr.row(r)) for r in rows)
-            par = [fr.splat("law", c) for c in range(4)]
-            fx, fy, f_n, f_t, regime = force4(nx, ny, delta, dvx, dvy, *par)
-            zero = ir.Constant(ir.VectorType(_I64, 4), [0] * 4)
-            t = _Mask(builder, builder.icmp_unsigned("!=", fr.lanes("touch", elem=_I64), zero))
-            sums = [("f", _select(t, fx, 0.0), _select(t, fy, 0.0))]
-            if tangent:
-                e = [fr.lanes("rows", fr.row(B_E0 + c)) for c in range(4)]
-                gx, gy = jvp4(nx, ny, inv_r, dvx, dvy, f_n, f_t, regime, *e, *par)
-                sums.append(("tf", _select(t, gx, 0.0), _select(t, gy, 0.0)))
-            sums = [
-                (name, x, y, _pack2(builder, args[11 + 2 * q], args[12 + 2 * q]))
-                for q, (name, x, y) in enumerate(sums)
-            ]
-            i = fr.index("pi")
-            j = fr.index("pj")
-            prev, accs = fr.scatter_pairs(i, j, fr.val["prev"], sums)
-            out = [prev]
-            for acc in accs:
-                out += [builder.extract_element(acc, ir.Constant(_I32, c)) for c in range(2)]
-            return context.make_tuple(builder, ret, out + list(args[10 + len(out) :]))
-
-        return sig, codegen
-
-    return intrinsic(typer)
-
-
-def _pack2(b, x, y):
-    v = b.insert_element(ir.Constant(_V2, ir.Undefined), x, ir.Constant(_I32, 0))
-    return b.insert_element(v, y, ir.Constant(_I32, 1))
-
-
-pair_front4 = _pair_front4(True)
-pair_front4_tail = _pair_front4(False)
-drum_back4 = _drum_back4(True, False)
-drum_back4_tail = _drum_back4(False, False)
-drum_back4_tangent = _drum_back4(True, True)
-drum_back4_tangent_tail = _drum_back4(False, True)

@@ -11,14 +11,18 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
-from granpipe.engine import kernels as K
+from granpipe.engine import layout as K
+from granpipe.engine import passes as P
 from granpipe.engine.contract import ContactLaw
 from granpipe.engine.layout import STORAGE
 from granpipe.engine.neighbours import cell_capacity, pair_capacity
+from granpipe.engine.profile import profile_passes
 from granpipe.engine.walls import NO_FLAT_WALLS, NO_WALL_DISKS, FlatWalls, WallDisks
 from granpipe.errors import ConfigError, SimulationError
 
@@ -35,7 +39,8 @@ _WALL_NAMES = {K.LEFT_WALL: "left wall", K.RIGHT_WALL: "right wall", K.BOTTOM_WA
 
 def _storage(s: dict) -> tuple:
     """The arrays of a state's storage dict as the tuple every stepping kernel takes
-    (:data:`granpipe.engine.layout.STORAGE` order; ``kernels._at`` picks one replica)."""
+    (:data:`granpipe.engine.layout.STORAGE` order; ``passes.replica_of`` picks one
+    replica)."""
     return tuple(s[k] for k in STORAGE)
 
 
@@ -122,7 +127,7 @@ class Ensemble:
     def from_arrays(arrays):
         """Rebuild a :class:`State` or :class:`Ensemble` saved by :meth:`to_arrays`."""
         fmt = int(np.asarray(arrays.get("engine_format", -1)))
-        if fmt not in (2, 3, 4, 5, 6, _FORMAT):
+        if fmt not in _LOADS:
             raise ConfigError(f"engine state format {fmt} is not {_FORMAT}; rerun to regenerate")
         storage = {}
         for key, val in arrays.items():
@@ -139,36 +144,17 @@ class Ensemble:
                 storage[key] = tuple(float(c) for c in a)
             else:
                 storage[key] = _aligned_copy(a)
-        if fmt == 3:
-            # format 3 kept four rows of per-disk records (scratch) after the eleven
-            storage["vec"] = np.ascontiguousarray(storage["vec"][:, : K.NV])
-        if fmt == 2:
-            # one-byte touch flags then (64-bit now: the law passes then need no packing)
-            storage["touch"] = storage["touch"].astype(np.int64)
-        if fmt < 7:
-            # fewer rows then: no perturbations of spin, torque and the wall histories
-            # (before 6), no wall pieces (before 7); the generic passes' rows start at 0
-            for key, rows in (("sca", K.NS), ("ivec", K.NI)):
-                a = storage[key]
-                grown = np.zeros(a.shape[:1] + (rows,) + a.shape[2:], dtype=a.dtype)
-                grown[:, : a.shape[1]] = a
-                storage[key] = grown
-        if fmt < 6:
-            storage["pair_dxi"] = np.zeros_like(storage["pair_xi"])
-        if fmt >= 4:
-            vec = storage["vec"]
-            storage.update(_scratch(vec.shape[:1], vec.shape[2], storage["pair_ij"].shape[-1]))
-        elif "old_dxi" not in storage:
-            storage["old_dxi"] = np.zeros_like(storage["old_xi"])
-        if fmt < 5:
-            # no overlap-bound slot then: the bound was half the smaller radius
-            storage["clock"] = _pad(storage["clock"], K.NCLOCK)
-            storage["clock"][..., K.OVERLAP_FRAC] = 0.5
-        if fmt < 4:
-            # no near-wall list then: an empty clock slot, and a counter saying "rebuild it"
-            storage["clock"] = _pad(storage["clock"], K.NCLOCK)
-            storage["counters"] = _pad(storage["counters"], K.NCOUNT)
-            storage["counters"][..., K.NEAR_WALLS] = -1
+        if fmt < 8:
+            # before 8 the state kept each contact's smooth piece (three rows of ivec for
+            # the flat walls, 1 + piece in the touch flags), and before 7 it had no rows
+            # for the flat walls' history perturbations: flags now, recounted
+            storage["ivec"] = np.ascontiguousarray(storage["ivec"][:, : K.NI])
+            storage["touch"] = np.minimum(storage["touch"], 1)
+            storage["counters"][..., K.COUNT_STALE] = 1
+            storage["sca"] = _pad(storage["sca"].swapaxes(1, 2), K.NS).swapaxes(1, 2).copy()
+        # scratch is rewritten before it is read
+        vec = storage["vec"]
+        storage.update(_scratch(vec.shape[:1], vec.shape[2], storage["pair_ij"].shape[-1]))
         cls = State if bool(np.asarray(arrays["single"])) else Ensemble
         return cls(_aligned(storage))
 
@@ -391,6 +377,7 @@ _PAIR_KEYS = (
     "old_dxi",
     "buf",
     "touch",
+    "flip",
 )
 
 
@@ -437,10 +424,11 @@ def _pad(arr, width):
     return out
 
 
-_FORMAT = 7
+_FORMAT = 8
+_LOADS = (6, 7, _FORMAT)  # formats a state saved by an earlier engine may have
 # storage that only carries values within one step or list build (pair buffers, the old
 # list while histories are carried over): not saved by ``to_arrays``
-_SCRATCH_KEYS = ("old_start", "old_j", "old_xi", "old_dxi", "buf")
+_SCRATCH_KEYS = ("old_start", "old_j", "old_xi", "old_dxi", "buf", "flip")
 
 
 def _scratch(lead, n, cap):
@@ -451,6 +439,7 @@ def _scratch(lead, n, cap):
         "old_xi": np.zeros(lead + (cap,)),
         "old_dxi": np.zeros(lead + (cap,)),
         "buf": np.zeros(lead + (K.NB, cap)),
+        "flip": np.zeros(lead + (cap,), dtype=np.int8),
     }
 
 
@@ -506,12 +495,9 @@ class Simulation:
         than that times its radius (default 0.5; must lie in (0, 2): at 2 two equal
         centres may coincide and the contact normal is lost).
     parallel : bool
-        Run ensembles of several replicas under ``prange`` (results are identical
-        either way).
-    passes : str
-        ``"law"`` (default): the law's own passes (:meth:`ContactLaw.kernels`);
-        ``"generic"``: the generic scalar passes of :mod:`granpipe.engine.generic`, the
-        reference every law's own passes are tested against.
+        Run the replicas of an ensemble side by side, in up to
+        ``numba.get_num_threads()`` threads (the kernels release the GIL; results are
+        identical either way).
     """
 
     law: ContactLaw
@@ -522,17 +508,10 @@ class Simulation:
     skin: float | None = None
     parallel: bool = True
     max_overlap: float = 0.5
-    passes: str = "law"
 
     def __post_init__(self):
         if not isinstance(self.law, ContactLaw):
             raise ConfigError("law must be a contact law (granpipe.engine.contract.ContactLaw)")
-        if self.passes not in ("law", "generic"):
-            raise ConfigError(f"passes must be 'law' or 'generic', got {self.passes!r}")
-        if self.flat_walls is not None and not self._kernels().flat_walls:
-            raise ConfigError(
-                f"the {self.passes} passes of the {self.law.name} law have no flat walls"
-            )
         if not (math.isfinite(self.dt) and self.dt > 0):
             raise ConfigError(f"dt must be > 0, got {self.dt!r}")
         if len(self.gravity) != 2:
@@ -548,20 +527,12 @@ class Simulation:
 
     # -- kernel parameters --------------------------------------------------------------
     def _params(self):
+        """``(g, laws, wd, fw)``: gravity, the law's leaf parameters at pairs and at the
+        three flat walls, and the walls' motion, as the passes take them."""
         g = np.asarray(self.gravity, dtype=np.float64)
         wd = NO_WALL_DISKS if self.wall_disks is None else self.wall_disks.params()
         fw = NO_FLAT_WALLS if self.flat_walls is None else self.flat_walls.params()
-        parameters = self._kernels().parameters
-        law = self.law.params() if parameters is None else parameters(self.law)
-        return g, law, wd, fw
-
-    def _kernels(self):
-        """The passes this simulation runs (:class:`granpipe.engine.contract.Kernels`)."""
-        if self.passes == "generic":
-            from granpipe.engine.generic import GENERIC_KERNELS
-
-            return GENERIC_KERNELS
-        return self.law.kernels()
+        return g, (self.law.params(), self.law.wall_params()), wd, fw
 
     # -- states -------------------------------------------------------------------------
     def new_state(
@@ -766,18 +737,18 @@ class Simulation:
         )
 
     def _refresh_kernel(self, state, tangent, rebuild, skin):
-        g, law, wd, fw = self._params()
+        g, laws, wd, fw = self._params()
         s = state._s
-        self._kernels().refresh(
-            law, tangent, rebuild, g, wd, fw, skin, _storage(s), self.dt, s["info"]
-        )
+        mode = P.TANGENT if tangent else P.FORWARD
+        P.refresh_serial(laws, mode, rebuild, g, wd, fw, skin, _storage(s), self.dt, s["info"])
 
     def refresh(self, state) -> None:
         """Re-place the walls, rebuild the neighbour list and re-evaluate the forces.
 
         Call after editing positions or velocities of a state in place. Forces use the
-        current (full-step) velocities; shear histories are kept, not advanced. With a
-        tangent vector set, its force perturbation is re-evaluated too.
+        current (full-step) velocities; shear histories are kept as they are (the next
+        step advances them). With a tangent vector set, its force perturbation is
+        re-evaluated too.
         """
         skin = self._check(state)
         self._refresh_kernel(state, bool(state._s["has_tangent"]), True, skin)
@@ -837,10 +808,6 @@ class Simulation:
         evaluated at the current state; the forces themselves are left untouched, so
         setting a tangent vector never changes the trajectory.
         """
-        if not self._kernels().tangent:
-            raise ConfigError(
-                f"the {self.passes} passes of the {self.law.name} law have no tangent dynamics"
-            )
         if dspin is not None and not self.law.has_spin:
             raise ConfigError(f"the {self.law.name} law has no spin to perturb")
         skin = self._check(state)
@@ -854,11 +821,16 @@ class Simulation:
         s["vec"][:, K.T_POS] = np.where(wall[..., None], 0.0, dr)
         s["vec"][:, K.T_VEL] = np.where(wall[..., None], 0.0, dv)
         s["sca"][:, K.T_SPIN] = np.where(wall, 0.0, ds)
+        s["sca"][:, K.T_XI_LEFT : K.T_XI_BOTTOM + 1] = 0.0
         s["pair_dxi"][:] = 0.0
         s["counters"][:, K.LOG2_SCALE] = 0
         s["has_tangent"] = True
-        g, law, wd, fw = self._params()
-        self._kernels().set_tangent(law, g, wd, fw, skin, _storage(s), self.dt, s["info"])
+        # the perturbations at the state as it stands (the refresh's evaluation: histories
+        # kept); the forces and torques from the last step are kept, so that setting a
+        # tangent vector never changes the trajectory
+        saved = s["vec"][:, K.FRC].copy(), s["sca"][:, K.TORQUE].copy()
+        self._refresh_kernel(state, True, False, skin)
+        s["vec"][:, K.FRC], s["sca"][:, K.TORQUE] = saved
         self._raise(state)
 
     def random_tangent(self, state, rng, fraction=0.1) -> None:
@@ -890,13 +862,10 @@ class Simulation:
         """
         if not state._single:
             raise ConfigError("profile_passes takes one State (ensemble[r])")
-        profile = self._kernels().profile
-        if profile is None:
-            raise ConfigError(
-                f"the {self.passes} passes of the {self.law.name} law have no profile"
-            )
-        self._check(state)
-        return profile(self, state.copy(), repeats, nrep)
+        skin = self._check(state)
+        _g, laws, _wd, fw = self._params()
+        copy = state.copy()
+        return profile_passes(laws, fw, skin, _storage(copy._s), repeats, nrep)
 
     # -- running ------------------------------------------------------------------------
     def run(self, state, n_steps, *, stride=0, tangent=False) -> Record:
@@ -932,10 +901,6 @@ class Simulation:
             raise ConfigError("n_steps must be >= 0")
         if stride < 0 or (stride > 0 and n_steps % stride):
             raise ConfigError(f"n_steps ({n_steps}) must be a multiple of stride ({stride})")
-        if tangent and not self._kernels().tangent:
-            raise ConfigError(
-                f"the {self.passes} passes of the {self.law.name} law have no tangent dynamics"
-            )
         if tangent and not state.has_tangent:
             raise ConfigError("set a tangent vector first (Simulation.set_tangent)")
         skin = self._check(state)
@@ -946,25 +911,23 @@ class Simulation:
         speed = np.zeros((r_count, blocks))
         lam = np.zeros((r_count, blocks))
         nlam = np.zeros((r_count, blocks), dtype=np.int64)
-        g, law, wd, fw = self._params()
-        kern = self._kernels()
-        fn = kern.run_parallel if self.parallel and r_count > 1 else kern.run_serial
-        fn(
-            law,
-            n_steps,
-            stride,
-            bool(tangent),
-            self.dt,
-            g,
-            wd,
-            fw,
-            skin,
-            _storage(s),
-            lam,
-            nlam,
-            speed,
-            s["info"],
-        )
+        g, laws, wd, fw = self._params()
+        mode = P.TANGENT if tangent else P.FORWARD
+        storage = _storage(s)
+
+        def replicas(r0, r1):
+            P.run_serial(
+                laws, mode, n_steps, stride, self.dt, g, wd, fw, skin,
+                tuple(a[r0:r1] for a in storage), lam[r0:r1], nlam[r0:r1], speed[r0:r1],
+                s["info"][r0:r1],
+            )  # fmt: skip
+
+        threads = min(numba.get_num_threads(), r_count) if self.parallel else 1
+        if threads > 1:
+            with ThreadPoolExecutor(threads) as pool:
+                list(pool.map(lambda r: replicas(r, r + 1), range(r_count)))
+        else:
+            replicas(0, r_count)
         self._raise(state)
         # block b holds steps b*stride+1 .. (b+1)*stride after the start
         centre = (np.arange(blocks) * stride + 0.5 * (stride + 1)) * self.dt

@@ -30,7 +30,7 @@ Everything here is in the drum's reduced units (``d_s``, ``m_s``, ``t0 = sqrt(d_
 
 Tangent dynamics: :func:`_jvp` is the exact derivative on each smooth piece (stick,
 slip, no friction) with respect to the relative position and velocity, both spins and
-the prior history, so the generic tangent pass linearises everything the step updates.
+the prior history, so the tangent pass linearises everything the step updates.
 """
 
 from __future__ import annotations
@@ -91,29 +91,9 @@ def _force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt
 
 @law_leaf(pair_force_jvp, StaticFrictionParams)
 def _jvp(
-    law,
-    nx,
-    ny,
-    curv,
-    lever_i,
-    lever_j,
-    vx,
-    vy,
-    w_i,
-    w_j,
-    m_eff,
-    f_n,
-    f_t,
-    piece,
-    dt,
-    ddx,
-    ddy,
-    dvx,
-    dvy,
-    dw_i,
-    dw_j,
-    dxi,
-):
+    law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
+    ddx, ddy, dvx, dvy, dw_i, dw_j, dxi,
+):  # fmt: skip
     psi, dr, dvn, du = perturbed_kinematics(
         nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, ddx, ddy, dvx, dvy, dw_i, dw_j
     )
@@ -159,6 +139,7 @@ class StaticFrictionLaw(ContactLaw):
     law_id = 2
     has_spin = True
     has_history = True
+    params_type = StaticFrictionParams
 
     def __post_init__(self):
         checked_parameter("k_n", self.k_n, allow_zero=False)

@@ -24,6 +24,10 @@ on the wall side (docs/drum.md, docs/box.md; docs/architecture.md, "The engine")
 Timing inside a step (velocity Verlet, forces at ``t_{n+1}`` from positions at
 ``t_{n+1}`` and half-step velocities): walls take their positions at ``t_{n+1}``
 and their velocities at ``t_{n+1/2}``, matching the disks' half-step velocities.
+
+The kernels here know no contact law: they move the walls, and tell which disks touch
+a flat wall (:func:`near_walls`, :func:`wall_candidates`) and where (:func:`wall_gap`,
+:func:`wall_normal`); the contact forces are the passes' (:mod:`granpipe.engine.passes`).
 """
 
 from __future__ import annotations
@@ -34,10 +38,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from granpipe._jit import njit
+from granpipe.engine import layout as L
 from granpipe.errors import ConfigError
 
-__all__ = ["WallDisks", "FlatWalls", "bottom_height", "bottom_velocity", "wall_velocity",
-           "wall_torque_factor"]
+__all__ = ["WallDisks", "FlatWalls", "NO_FLAT_WALLS", "NO_WALL_DISKS", "bottom_height"]
+__all__ += ["bottom_velocity", "bottom", "wall_velocity", "wall_torque_factor", "wall_omega"]
+__all__ += ["time_now", "place_wall_disks", "advance_walls", "has_flat", "wall_gap"]
+__all__ += ["wall_normal", "near_walls", "wall_candidates"]
 
 
 @dataclass(frozen=True)
@@ -203,3 +210,192 @@ def wall_torque_factor(fw):
 def wall_omega(wd, t):
     """Angular velocity of the wall disks at time ``t``."""
     return wd[2] if t < wd[4] else wd[3]
+
+
+@njit
+def time_now(clock, counters, dt):
+    """Time of a replica's state: its origin plus its steps."""
+    return clock[L.T_ORIGIN] + counters[L.STEP] * dt
+
+
+@njit
+def bottom(fw, t):
+    """Height and velocity of the flat bottom at time ``t`` (0, 0 without one)."""
+    if fw[4] == 0.0:
+        return 0.0, 0.0
+    return bottom_height(fw, t), bottom_velocity(fw, t)
+
+
+@njit
+def has_flat(fw):
+    """Whether there is any flat wall."""
+    return fw[0] != 0.0 or fw[2] != 0.0 or fw[4] != 0.0
+
+
+# --------------------------------------------------------------------------- wall disks
+
+
+@njit
+def place_wall_disks(vec, sca, walls, n_walls, wd, theta, omega):
+    """Place the wall disks at angle ``theta`` with velocities ``omega x (r - c)`` and spin
+    ``omega``."""
+    pos = vec[L.POS]
+    vel = vec[L.VEL]
+    ref = vec[L.WALL_REF]
+    spin = sca[L.SPIN]
+    cx = wd[0]
+    cy = wd[1]
+    c = math.cos(theta)
+    s = math.sin(theta)
+    for m in range(n_walls):
+        i = walls[m]
+        rx = ref[i, 0]
+        ry = ref[i, 1]
+        x = cx + c * rx - s * ry
+        y = cy + s * rx + c * ry
+        pos[i, 0] = x
+        pos[i, 1] = y
+        vel[i, 0] = -omega * (y - cy)
+        vel[i, 1] = omega * (x - cx)
+        spin[i] = omega
+
+
+@njit
+def advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin):
+    """Move the walls over the step that starts now; returns (wall disks moved far enough
+    for a list rebuild, z_b at the step's end, v_b at its middle)."""
+    t0 = time_now(clock, counters, dt)
+    t1 = clock[L.T_ORIGIN] + (counters[L.STEP] + 1) * dt
+    moved = False
+    n_walls = counters[L.N_WALLS]
+    if n_walls > 0:
+        omega = wall_omega(wd, t0 + 0.5 * dt)
+        if omega != 0.0 or clock[L.LAST_OMEGA] != 0.0:
+            clock[L.THETA] += omega * dt
+            place_wall_disks(vec, sca, walls, n_walls, wd, clock[L.THETA], omega)
+            clock[L.LAST_OMEGA] = omega
+            # a wall disk at distance R has moved by at most R |theta - theta_build|
+            moved = clock[L.WALL_RMAX] * abs(clock[L.THETA] - clock[L.THETA_BUILD]) > half_skin
+    zb = 0.0
+    vb = 0.0
+    if fw[4] != 0.0:
+        zb = bottom_height(fw, t1)
+        vb = bottom_velocity(fw, t0 + 0.5 * dt)
+        if abs(zb - clock[L.ZB_NEAR]) > half_skin:
+            counters[L.NEAR_WALLS] = -1
+    return moved, zb, vb
+
+
+# --------------------------------------------------------------------------- flat walls
+
+
+@njit
+def wall_gap(w, pos, i, fw, zb):
+    """Distance from disk ``i``'s centre to flat wall ``w`` (0 left, 1 right, 2 bottom)."""
+    if w == 0:
+        return pos[i, 0] - fw[1]
+    if w == 1:
+        return fw[3] - pos[i, 0]
+    return pos[i, 1] - zb
+
+
+@njit
+def wall_normal(w):
+    """Unit normal of flat wall ``w`` pointing into the box."""
+    return (1.0 if w == 0 else (-1.0 if w == 1 else 0.0)), (1.0 if w == 2 else 0.0)
+
+
+@njit
+def _limits(fw, zb):
+    big = 1e300
+    return (
+        fw[1] if fw[0] != 0.0 else -big,
+        fw[3] if fw[2] != 0.0 else big,
+        zb if fw[4] != 0.0 else -big,
+    )
+
+
+@njit
+def _forget_unless(sca, w, i, touching):
+    """Zero disk ``i``'s shear history against wall ``w`` and its perturbation unless it
+    touches the wall."""
+    if not touching:
+        sca[L.XI_LEFT + w, i] = 0.0
+        sca[L.T_XI_LEFT + w, i] = 0.0
+
+
+@njit
+def near_walls(vec, sca, ivec, fw, zb, skin, reset, clock, counters):
+    """List in ``ivec[L.CELL_ITEMS]`` the mobile disks within ``2 skin`` of touching a flat
+    wall (ascending); with ``reset`` (laws with history), zero the wall shear histories
+    and their perturbations of the others.
+
+    The list is rebuilt with the neighbour list and when the bottom has moved more than
+    ``skin/2`` since: until then a disk has moved at most ``skin`` from where it was
+    listed (each less than ``skin/2`` from its place at the list build) and the bottom at
+    most ``skin/2``, so a disk not listed cannot touch a wall, and its history is zero.
+    """
+    pos = vec[L.POS]
+    mob = vec[L.MOB2]
+    radius = sca[L.RADIUS]
+    near = ivec[L.CELL_ITEMS]
+    x_left, x_right, z_bottom = _limits(fw, zb)
+    margin = 2.0 * skin
+    m = 0
+    for i in range(radius.shape[0]):
+        x = pos[i, 0]
+        y = pos[i, 1]
+        a = radius[i] + margin
+        if mob[i, 0] != 0.0 and (x - x_left <= a or x_right - x <= a or y - z_bottom <= a):
+            near[m] = i
+            m += 1
+        elif reset:
+            for w in range(3):
+                _forget_unless(sca, w, i, False)
+    counters[L.NEAR_WALLS] = m
+    clock[L.ZB_NEAR] = zb
+
+
+@njit
+def wall_candidates(vec, sca, ivec, fw, zb, skin, reset, clock, counters, out, info, step):
+    """Disks of the near-wall list (:func:`near_walls`, rebuilt here when stale) touching
+    at least one flat wall, listed in ``out``; returns how many, or -1 (recorded in
+    ``info``) if one overlaps a wall by more than the bound (``clock[L.OVERLAP_FRAC]``
+    times its radius).
+
+    One pass for all three walls (an absent wall sits at infinity). With ``reset`` (laws
+    with history), the shear history and its perturbation against each wall of the
+    listed disks not touching it are zeroed. Most disks touch no wall, so the branch is
+    well predicted and the contact loop only sees the touching disks.
+    """
+    if counters[L.NEAR_WALLS] < 0:
+        near_walls(vec, sca, ivec, fw, zb, skin, reset, clock, counters)
+    pos = vec[L.POS]
+    radius = sca[L.RADIUS]
+    near = ivec[L.CELL_ITEMS]
+    x_left, x_right, z_bottom = _limits(fw, zb)
+    frac = clock[L.OVERLAP_FRAC]
+    m = 0
+    for q in range(counters[L.NEAR_WALLS]):
+        i = near[q]
+        x = pos[i, 0]
+        y = pos[i, 1]
+        a = radius[i]
+        t_l = x - x_left <= a
+        t_r = x_right - x <= a
+        t_b = y - z_bottom <= a
+        if reset:
+            _forget_unless(sca, 0, i, t_l)
+            _forget_unless(sca, 1, i, t_r)
+            _forget_unless(sca, 2, i, t_b)
+        if t_l | t_r | t_b:
+            for w in range(3):
+                if fw[2 * w] != 0.0 and a - wall_gap(w, pos, i, fw, zb) > frac * a:
+                    info[0] = L.DEEP_OVERLAP
+                    info[1] = i
+                    info[2] = -1 - w
+                    info[3] = step
+                    return -1
+            out[m] = i
+            m += 1
+    return m
