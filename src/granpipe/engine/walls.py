@@ -316,15 +316,6 @@ def _limits(fw, zb):
 
 
 @njit
-def _forget_unless(sca, w, i, touching):
-    """Zero disk ``i``'s shear history against wall ``w`` and its perturbation unless it
-    touches the wall."""
-    if not touching:
-        sca[L.XI_LEFT + w, i] = 0.0
-        sca[L.T_XI_LEFT + w, i] = 0.0
-
-
-@njit
 def near_walls(vec, sca, ivec, fw, zb, skin, reset, clock, counters):
     """List in ``ivec[L.CELL_ITEMS]`` the mobile disks within ``2 skin`` of touching a flat
     wall (ascending); with ``reset`` (laws with history), zero the wall shear histories
@@ -351,44 +342,53 @@ def near_walls(vec, sca, ivec, fw, zb, skin, reset, clock, counters):
             m += 1
         elif reset:
             for w in range(3):
-                _forget_unless(sca, w, i, False)
+                sca[L.XI_LEFT + w, i] = 0.0
+                sca[L.T_XI_LEFT + w, i] = 0.0
     counters[L.NEAR_WALLS] = m
     clock[L.ZB_NEAR] = zb
 
 
 @njit
-def wall_candidates(vec, sca, ivec, fw, zb, skin, reset, clock, counters, out, info, step):
+def wall_candidates(vec, sca, ivec, fw, zb, skin, reset, tangent, clock, counters, out, info,
+                    step):  # fmt: skip
     """Disks of the near-wall list (:func:`near_walls`, rebuilt here when stale) touching
     at least one flat wall, listed in ``out``; returns how many, or -1 (recorded in
-    ``info``) if one overlaps a wall by more than the bound (``clock[L.OVERLAP_FRAC]``
+    ``info``) if one overlaps a wall by more than the bound (``clock[OVERLAP_FRAC]``
     times its radius).
 
     One pass for all three walls (an absent wall sits at infinity). With ``reset`` (laws
-    with history), the shear history and its perturbation against each wall of the
-    listed disks not touching it are zeroed. Most disks touch no wall, so the branch is
-    well predicted and the contact loop only sees the touching disks.
+    with history), the shear history against each wall of the listed disks not touching
+    it is zeroed, and with ``tangent`` its perturbation too. Most disks touch no wall,
+    so the branch is well predicted and the contact loop only sees the touching disks.
     """
     if counters[L.NEAR_WALLS] < 0:
         near_walls(vec, sca, ivec, fw, zb, skin, reset, clock, counters)
-    pos = vec[L.POS]
+    p = vec[L.POS].reshape(vec[L.POS].size)
     radius = sca[L.RADIUS]
     near = ivec[L.CELL_ITEMS]
+    xi_l, xi_r, xi_b = sca[L.XI_LEFT], sca[L.XI_RIGHT], sca[L.XI_BOTTOM]
+    dxi_l, dxi_r, dxi_b = sca[L.T_XI_LEFT], sca[L.T_XI_RIGHT], sca[L.T_XI_BOTTOM]
     x_left, x_right, z_bottom = _limits(fw, zb)
     frac = clock[L.OVERLAP_FRAC]
     m = 0
     for q in range(counters[L.NEAR_WALLS]):
         i = near[q]
-        x = pos[i, 0]
-        y = pos[i, 1]
+        x = p[2 * i]
+        y = p[2 * i + 1]
         a = radius[i]
         t_l = x - x_left <= a
         t_r = x_right - x <= a
         t_b = y - z_bottom <= a
         if reset:
-            _forget_unless(sca, 0, i, t_l)
-            _forget_unless(sca, 1, i, t_r)
-            _forget_unless(sca, 2, i, t_b)
+            xi_l[i] = xi_l[i] if t_l else 0.0
+            xi_r[i] = xi_r[i] if t_r else 0.0
+            xi_b[i] = xi_b[i] if t_b else 0.0
+        if reset and tangent:
+            dxi_l[i] = dxi_l[i] if t_l else 0.0
+            dxi_r[i] = dxi_r[i] if t_r else 0.0
+            dxi_b[i] = dxi_b[i] if t_b else 0.0
         if t_l | t_r | t_b:
+            pos = vec[L.POS]
             for w in range(3):
                 if fw[2 * w] != 0.0 and a - wall_gap(w, pos, i, fw, zb) > frac * a:
                     info[0] = L.DEEP_OVERLAP
