@@ -6,6 +6,7 @@ import pytest
 
 from granpipe.box import layout
 from granpipe.config import load
+from granpipe.io import config_hash
 
 from .conftest import SECTION
 
@@ -71,7 +72,21 @@ def test_stage_subsets_hold_only_what_the_stage_reads():
     assert set(layout.init_params(SECTION, 0.6)) == {"physics", "init"}
     assert layout.init_params(SECTION, 0.2)["physics"]["mu_side_walls"] == 0.2
     assert set(layout.ensemble_params(SECTION)) == {"Lx", "detection", "slips", "order"}
-    assert set(layout.fits_params(SECTION)) == {"detection", "fits"}
+    # a point's ensemble also names the files it reduces: the point, its replicas and
+    # the config hash of each part's run files
+    point = layout.point_name(*layout.points(SECTION)[0])
+    one = layout.ensemble_params(SECTION, point)
+    assert set(one) - {"Lx", "detection", "slips", "order"} == {
+        "point", "replicas", "runs_config_hashes"
+    }  # fmt: skip
+    mu_w = layout.parse_point(point)[3]
+    assert one["runs_config_hashes"] == [
+        config_hash(layout.runs_params(SECTION, p, mu_w)) for p in range(layout.n_parts(SECTION))
+    ]
+    fits = layout.fits_params(SECTION)
+    assert set(fits) == {"detection", "fits", "points"}
+    assert fits["points"][point] == config_hash(one)
+    assert set(fits["points"]) == {layout.point_name(*pt) for pt in layout.points(SECTION)}
     assert "resources" not in str(layout.runs_params(SECTION, 0, 0.6))
 
 

@@ -52,6 +52,7 @@ __all__ = [
     "POINT_RE",
     "init_params",
     "runs_params",
+    "previous_part_params",
     "ensemble_params",
     "fits_params",
     "figures_params",
@@ -215,8 +216,12 @@ def ensemble_files(section: Mapping) -> list[str]:
     return [ensemble_file(*pt) for pt in points(section)]
 
 
-FITS = ("fits/phase_diagram.nc", "fits/temperature.nc", "fits/slips.nc", "fits/summary.csv")
-"""Outputs of the fits stage."""
+FITS = (
+    "fits/phase_diagram.nc", "fits/temperature.nc", "fits/slips.nc", "fits/summary.csv",
+    "fits/costs.csv",
+)  # fmt: skip
+"""Outputs of the fits stage (``costs.csv``: the wall-clock costs, apart from the fitted
+numbers of ``summary.csv``)."""
 
 FIGURES = {
     1: "fig1_snapshots",
@@ -259,27 +264,71 @@ def runs_params(section: Mapping, part: int, mu_w: float) -> dict:
     }
 
 
-def ensemble_params(section: Mapping) -> dict:
-    """Config subset of the ensemble stage: detection, slips, order and the box width."""
-    return {
+def previous_part_params(params: Mapping) -> dict:
+    """The config subset of the part before the one whose subset is ``params``
+    (:func:`runs_params`): every part but the last is ``periods_per_part`` long."""
+    p0 = int(params["part_periods"][0])
+    return {**params, "part_periods": [p0 - int(params["protocol"]["periods_per_part"]), p0]}
+
+
+def ensemble_params(section: Mapping, point: str | None = None) -> dict:
+    """Config subset of the ensemble stage: detection, slips, order and the box width; for
+    one ``point`` (its name) also which files it reduces: the point, its replica count and
+    the config hash of each part's run files."""
+    from ..io import config_hash
+
+    out = {
         "Lx": float(section["physics"]["Lx"]),
         "detection": dict(section["detection"]),
         "slips": dict(section["slips"]),
         "order": dict(section["order"]),
     }
+    if point is not None:
+        mu_w = parse_point(point)[3]
+        out.update(
+            point=point,
+            replicas=int(section["grid"]["replicas"]),
+            runs_config_hashes=[
+                config_hash(runs_params(section, part, mu_w)) for part in range(n_parts(section))
+            ],
+        )
+    return out
+
+
+def _inputs(section: Mapping) -> dict:
+    """The config hashes of the files the fits and figures read: ``points`` (point name ->
+    its ensemble file's) and ``states`` (initial state name -> its init files')."""
+    from ..io import config_hash
+
+    return {
+        "points": {
+            point_name(*pt): config_hash(ensemble_params(section, point_name(*pt)))
+            for pt in points(section)
+        },
+        "states": {
+            state_name(*st): config_hash(init_params(section, st[2])) for st in init_states(section)
+        },
+    }
 
 
 def fits_params(section: Mapping) -> dict:
-    """Config subset of the fits stage (criteria and fit settings)."""
-    return {"detection": dict(section["detection"]), "fits": dict(section["fits"])}
+    """Config subset of the fits stage (criteria and fit settings) and the config hash
+    of each point's ensemble file."""
+    return {
+        "detection": dict(section["detection"]),
+        "fits": dict(section["fits"]),
+        "points": _inputs(section)["points"],
+    }
 
 
 def figures_params(section: Mapping) -> dict:
-    """Config subset of the figures stage."""
+    """Config subset of the figures stage, with the config hashes of the ensemble and
+    init files it reads."""
     return {
         "Lx": float(section["physics"]["Lx"]),
         "order": dict(section["order"]),
         "fits": dict(section["fits"]),
+        **_inputs(section),
     }
 
 

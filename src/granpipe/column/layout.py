@@ -20,8 +20,10 @@ __all__ = [
     "relaxation_params",
     "chaos_points",
     "chaos_params",
+    "chaos_point_params",
     "continuum_params",
     "ensemble_params",
+    "input_hashes",
     "fits_params",
     "figures_params",
     "rule_params",
@@ -178,23 +180,64 @@ def continuum_params(cfg: Mapping, with_convergence: bool = False) -> dict:
     return p
 
 
+def chaos_point_params(cfg: Mapping, point: str) -> dict:
+    """The config subset a chaos point's file records: :func:`chaos_params` with the
+    point's a and T in its physics, as the rule passes them (the values of its name)."""
+    a, t = (float(v.split("=")[1]) for v in point.split(","))
+    p = chaos_params(cfg)
+    return {**p, "physics": {**p["physics"], "a": a, "T": t}}
+
+
 def ensemble_params(cfg: Mapping, kind: str) -> dict:
-    """Config subset of an ensemble rule: none for the relaxation batches (the kind only),
-    the interval's confidence for the chaos map."""
+    """Config subset of an ensemble rule, with the config hashes of the files it reduces
+    (each stage checks its inputs against them): the relaxation batches' for the
+    relaxation (``runs_config_hash``), each point's and the interval's confidence for the
+    chaos map (``points``: name -> hash)."""
+    from ..io import config_hash
+
     if kind == "relaxation":
-        return {"kind": "relaxation"}
+        return {"kind": "relaxation", "runs_config_hash": config_hash(relaxation_params(cfg))}
     if kind == "chaos":
-        return {"confidence": cfg["chaos"].get("confidence", 0.95)}
+        return {
+            "confidence": cfg["chaos"].get("confidence", 0.95),
+            "points": {pt: config_hash(chaos_point_params(cfg, pt)) for pt in chaos_points(cfg)},
+        }
     raise ValueError(f"kind must be 'relaxation' or 'chaos', got {kind!r}")
 
 
+def input_hashes(cfg: Mapping, trajectories: bool = False) -> dict:
+    """The config hashes of the files the fits (and, with ``trajectories``, the figures)
+    read: the two ensembles, the continuum comparison and convergence runs, and each
+    figure-1 column's trajectories (by name)."""
+    from ..io import config_hash
+
+    out = {
+        "relaxation": config_hash(ensemble_params(cfg, "relaxation")),
+        "chaos": config_hash(ensemble_params(cfg, "chaos")),
+        "continuum": config_hash(continuum_params(cfg)),
+        "convergence": config_hash(continuum_params(cfg, True)),
+    }
+    if trajectories:
+        out["trajectories"] = {
+            name: config_hash(trajectory_params(cfg, name)) for name in figure_sets(cfg)
+        }
+    return out
+
+
 def fits_params(cfg: Mapping) -> dict:
-    return {"n_boot": cfg["relaxation"].get("n_boot", 1000), "units": units(cfg)}
+    """Config subset of the fits rule: the bootstrap, the unit names and the config hashes
+    of its inputs (:func:`input_hashes`)."""
+    return {
+        "n_boot": cfg["relaxation"].get("n_boot", 1000),
+        "units": units(cfg),
+        "inputs": input_hashes(cfg),
+    }
 
 
 def figures_params(cfg: Mapping) -> dict:
-    """Config subset of the figures rule: the unit names only."""
-    return {"units": units(cfg)}
+    """Config subset of the figures rule: the unit names and the config hashes of its
+    inputs."""
+    return {"units": units(cfg), "inputs": input_hashes(cfg, trajectories=True)}
 
 
 def rule_params(cfg: Mapping) -> dict[str, dict]:

@@ -30,6 +30,7 @@ import yaml
 
 from ..config import schema_dir
 from ..errors import ConfigError
+from ..io import config_hash
 from .model import omega
 
 __all__ = [
@@ -41,6 +42,7 @@ __all__ = [
     "point_names",
     "point_sections",
     "rule_params",
+    "ENSEMBLE_KEYS",
     "batch_ids",
     "n_batches",
     "init_file",
@@ -125,33 +127,46 @@ def point_names(section: Mapping) -> list[str]:
     return list(point_sections(section))
 
 
+ENSEMBLE_KEYS = ("ensemble", "point", "runs_config_hash")
+"""The keys of an ensemble rule's config subset (:func:`rule_params`); a fits rule's subset
+holds them too, so that the fits stage knows the config hash of the ensemble file it
+reads."""
+
+
 def rule_params(section: Mapping) -> dict[str, dict]:
     """The config subset each drum rule depends on (its ``params:``), per point.
 
-    Returns ``{"sim": {point: ...}, "ensemble": ..., "fits": ..., "figures": ...,
-    "summary": ...}``: a simulation depends on its point's physics (``k_t`` only under
+    Returns ``{"sim": {point: ...}, "ensemble": {point: ...}, "fits": {point: ...},
+    "figures": ...}``: a simulation depends on its point's physics (``k_t`` only under
     static friction), settle (settled start-up only), protocol and batch size
-    (:func:`trajectory_keys`); the ensemble on ``exclude_flagged``; the fits on that and
-    ``fits`` (and its point's label, for the row names); the figures on ``figures`` and
-    the list of points (name, period, start-up, friction, label; the reference first: a
-    list, because the JSON of the params has sorted keys). Editing the physics of one
-    point, or adding a point, changes no other point's subsets.
+    (:func:`trajectory_keys`); the ensemble on ``exclude_flagged`` and on which files it
+    reduces: its point's name and the config hash of that point's run files
+    (``runs_config_hash``, the hash of the point's simulation subset, :data:`ENSEMBLE_KEYS`);
+    the fits on those and ``fits`` (and its point's label, for the row names); the
+    figures on ``figures`` and the list of points (name, period, start-up, friction,
+    label, runs config hash; the reference first: a list, because the JSON of the params
+    has sorted keys). Editing the physics of one point, or adding a point, changes no
+    other point's subsets. A stage checks every file it reads against the point and
+    hash its subset names (:func:`granpipe.io.expect_input`).
     """
     sec = filled(section)
-    sim, fits, table = {}, {}, []
-    ensemble = {"ensemble": {"exclude_flagged": sec["ensemble"]["exclude_flagged"]}}
+    sim, ensemble, fits, table = {}, {}, {}, []
+    flagged = {"exclude_flagged": sec["ensemble"]["exclude_flagged"]}
     for name, p in point_sections(sec).items():
         sim[name] = {
             **trajectory_keys(p),
             "ensemble": {"batch_size": p["ensemble"]["batch_size"]},
         }
-        fits[name] = {**ensemble, "fits": sec["fits"], "label": point_label(p, sec)}
+        runs_hash = config_hash(sim[name])
+        ensemble[name] = {"ensemble": flagged, "point": name, "runs_config_hash": runs_hash}
+        fits[name] = {**ensemble[name], "fits": sec["fits"], "label": point_label(p, sec)}
         table.append({
             "name": name,
             "period_s": p["physics"]["period_s"],
             "startup": p["protocol"]["startup"],
             "friction": p["physics"]["friction"],
             "label": fits[name]["label"],
+            "runs_config_hash": runs_hash,
         })  # fmt: skip
     return {
         "sim": sim,

@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import check_run_files, read_dataset, write_dataset
-from .layout import load
+from ..errors import RunFileError
+from ..io import check_run_files, config_hash, expect_input, read_dataset, write_dataset
+from .layout import ENSEMBLE_KEYS, load
 
 __all__ = [
     "init_stage",
@@ -41,6 +42,13 @@ def _point(sec) -> str:
     from .layout import point_name
 
     return point_name(sec)
+
+
+def _section(params: Mapping):
+    """The drum section of a later stage's ``--params`` (without the point, the run
+    files' config hash and the row label: :func:`granpipe.drum.layout.rule_params`)."""
+    return load({k: v for k, v in params.items() if k not in ("point", "runs_config_hash",
+                                                               "label")})  # fmt: skip
 
 
 def init_stage(params: Mapping, batch: int, out: str | os.PathLike, threads: int = 1) -> Path:
@@ -65,12 +73,12 @@ def runs_stage(
     from .protocol import run_batch
 
     sec = load(params)  # filled once, handed down frozen
-    (info,) = check_run_files([init], study=STUDY, stage="init")
-    init_ds = read_dataset(init)
-    if init_ds.attrs.get("point") != _point(sec):
-        raise ValueError(f"{init} holds point {init_ds.attrs.get('point')}, not {_point(sec)}")
+    (info,) = check_run_files(
+        [init], study=STUDY, stage="init", point=_point(sec), config_hash=config_hash(params)
+    )
     if info["batch"] is not None and int(info["batch"]) != int(batch):
-        raise ValueError(f"{init} holds batch {info['batch']}, not batch {batch}")
+        raise RunFileError(f"{init} holds batch {info['batch']}, not batch {batch}")
+    init_ds = read_dataset(init)
     ds = run_batch(sec, int(batch), init_ds, threads=threads, log=_log)
     seeds = [int(s) for s in ds["seed"].values]
     path = write_dataset(
@@ -85,16 +93,19 @@ def ensemble_stage(params: Mapping, runs: Sequence[str | os.PathLike], out) -> P
     """Stream the run files of one point into ensemble means, standard errors and counts."""
     from .fits import reduce_runs
 
-    sec = load(params)
+    sec = _section(params)
     t0 = time.perf_counter()
-    info = check_run_files(runs, study=STUDY)
+    point, runs_hash = params["point"], params["runs_config_hash"]
+    check_run_files(runs, study=STUDY, point=point, config_hash=runs_hash)
     ds = reduce_runs(runs, exclude_flagged=sec["ensemble"]["exclude_flagged"])
-    ds.attrs["runs_config_hash"] = info[0]["config_hash"]
     _log(
         f"reduced {ds.attrs['n_batches']} batch(es): {ds.attrs['n_replicas']} replicas used, "
         f"{ds.attrs['n_excluded']} excluded, in {time.perf_counter() - t0:.1f} s"
     )
-    path = write_dataset(ds, out, config_subset=params, study=STUDY, stage="ensemble")
+    path = write_dataset(
+        ds, out, config_subset=params, study=STUDY, stage="ensemble", point=point,
+        runs_config_hash=runs_hash,
+    )  # fmt: skip
     _log(f"wrote {path}")
     return path
 
@@ -115,12 +126,15 @@ def fits_stage(
     from .fits import PAPER_VALUES, drum_fits, load_units
 
     label = str(params.get("label", ""))
-    sec = load({k: v for k, v in params.items() if k != "label"})
+    sec = _section(params)
     fcfg = sec["fits"]
-    info = check_run_files(runs, study=STUDY)
+    point, runs_hash = params["point"], params["runs_config_hash"]
+    check_run_files(runs, study=STUDY, point=point, config_hash=runs_hash)
     ens = read_dataset(ensemble)
-    if ens.attrs.get("runs_config_hash") not in (None, info[0]["config_hash"]):
-        raise ValueError(f"{ensemble} was reduced from other run files than {runs[0]}")
+    expect_input(
+        ens, ensemble, study=STUDY, stage="ensemble", point=point,
+        config_hash=config_hash({k: params[k] for k in ENSEMBLE_KEYS}),
+    )  # fmt: skip
     units = load_units(runs, fcfg["bootstrap_unit"], sec["ensemble"]["exclude_flagged"])
     n_units = units["onset"].speed.shape[0]
     _log(
@@ -145,7 +159,10 @@ def fits_stage(
         label=label,
         quantities=" ".join(r.quantity for r in results),
     )
-    path = write_dataset(ds, out, config_subset=params, study=STUDY, stage="fits")
+    path = write_dataset(
+        ds, out, config_subset=params, study=STUDY, stage="fits", point=point,
+        runs_config_hash=runs_hash,
+    )  # fmt: skip
     _log(f"wrote {path}")
     return path
 
@@ -156,11 +173,14 @@ def summary_stage(fits: Sequence[str | os.PathLike], summary: str | os.PathLike)
     from ..analysis.summary import results_rows, write_summary
     from .fits import PAPER_VALUES
 
-    rows = []
+    rows, points = [], {}
     for path in fits:
         ds = read_dataset(path)
-        if ds.attrs.get("study") != STUDY or ds.attrs.get("stage") != "fits":
-            raise ValueError(f"{path} is not a drum fits file")
+        expect_input(ds, path, study=STUDY, stage="fits")
+        point = str(ds.attrs.get("point"))
+        if point in points:
+            raise RunFileError(f"point {point} appears twice: in {points[point]} and in {path}")
+        points[point] = path
         if ds.attrs.get("label", ""):
             rows += results_rows(ds, STUDY)
         else:  # the reference point: the paper's numbers beside its rows
@@ -191,16 +211,25 @@ def figures_stage(
     dpi = int(sec["figures"]["dpi"])
     points = list(params["points"])
     if len(points) != len(ensembles) or len(points) != len(fits):
-        raise ValueError("figures need one ensemble and one fits file per point")
+        raise RunFileError(
+            f"figures need one ensemble and one fits file per point ({len(points)} points): "
+            f"got {len(ensembles)} ensemble and {len(fits)} fits file(s)"
+        )
     table = {}
     for meta, e, f in zip(points, ensembles, fits, strict=True):
-        name = meta["name"]
-        if Path(e).stem != name or Path(f).stem != name:
-            raise ValueError(f"{e} / {f} are not the files of point {name}")
-        table[name] = {**meta, "ensemble": read_dataset(e), "fits": read_dataset(f)}
+        name, runs_hash = meta["name"], meta["runs_config_hash"]
+        ens, fit = read_dataset(e), read_dataset(f)
+        for ds, path, stage in ((ens, e, "ensemble"), (fit, f, "fits")):
+            expect_input(ds, path, study=STUDY, stage=stage, point=name,
+                         runs_config_hash=runs_hash)  # fmt: skip
+        table[name] = {**meta, "ensemble": ens, "fits": fit}
     ref = table[next(iter(table))]
     ens, fit = ref["ensemble"], ref["fits"]
     run = read_dataset(snapshot)
+    expect_input(
+        run, snapshot, study=STUDY, stage="runs", point=points[0]["name"],
+        config_hash=points[0]["runs_config_hash"], batch=sec["figures"]["snapshot_batch"],
+    )  # fmt: skip
     outdir = Path(outdir)
     makers = {
         2: lambda: figs.fig2_snapshot(run),
