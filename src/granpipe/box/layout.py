@@ -64,15 +64,16 @@ __all__ = [
 
 INITS = ("crystal", "random")
 
-MAX_SIMULATION_JOBS = 10_000
-"""The most init + runs jobs a box config may ask for: Snakemake plans ~6 ms per job, so
-10,000 take about a minute (the paper scale asks for 1,010; see the drum's limit)."""
+BYTES_PER_DISK = 4096
+"""A generous bound on a run's memory per disk (engine state and lists,
+``granpipe.engine.layout``), besides the 16 bytes per disk and recorded period."""
 
 
 def check(section: Mapping) -> None:
     """Cross-key checks of a ``box`` section before any job runs (ConfigError names the
-    key): ``fits.N_l`` one of ``grid.N_l``, a transient at least as long as the ramp, and a
-    plan Snakemake can build."""
+    key): ``fits.N_l`` one of ``grid.N_l``, a transient at least as long as the ramp, a
+    plan Snakemake can build (parts numbered in three digits), a box wide enough for a
+    crystal row, and runs that fit in this machine's memory."""
     from ..errors import ConfigError
 
     grid = section.get("grid", {})
@@ -87,14 +88,27 @@ def check(section: Mapping) -> None:
             f"config keys 'box.protocol.ramp_periods' = {ramp} and 'transient_periods' = "
             f"{transient}: the ramp must end before the measurement starts"
         )
+    from ..config import check_memory, check_plan
+    from .preparation import crystal_row_lengths
+
     jobs = len(points(section)) * len(replicas(section)) * (n_parts(section) + 1)
-    if jobs > MAX_SIMULATION_JOBS:
+    check_plan("box.grid", jobs, "raise 'box.protocol.periods_per_part' or shrink the grid")
+    if n_parts(section) > 1000:  # the rules' three-digit part pattern
         raise ConfigError(
-            f"config key 'box.grid': {jobs} simulation jobs, more than {MAX_SIMULATION_JOBS} "
-            "(Snakemake would take over a minute to plan them): raise "
-            "'box.protocol.periods_per_part'"
-            " or shrink the grid"
+            f"config keys 'box.protocol.measured_periods' and 'periods_per_part': "
+            f"{n_parts(section)} parts per run, more than 1000"
         )
+    lx = float(section["physics"]["Lx"])
+    rows = section.get("init", {}).get("crystal_rows", "spanning")
+    if "crystal" in section["grid"].get("inits", INITS) and min(crystal_row_lengths(lx, rows)) < 1:
+        raise ConfigError(
+            f"config key 'box.physics.Lx' = {lx} holds no crystal row ('box.init.crystal_rows'"
+            f" = {rows}: rows of floor(Lx) and floor(Lx) - 1 disks): at least 2 for a crystal"
+        )
+    frames = int(pr.get("periods_per_part", 200)) + 1
+    check_memory(
+        "box.grid.N_l", max(n_ls), n_disks(section, max(n_ls)) * (BYTES_PER_DISK + 16 * frames)
+    )
 
 
 POINT_RE = re.compile(r"^N_l=(\d+),Gamma=([0-9.eE+-]+),init=(crystal|random),mu_w=([0-9.eE+-]+)$")

@@ -41,12 +41,13 @@ FIGURES = (
 
 def check(cfg: Mapping) -> None:
     """Cross-key checks of a ``column`` section before any job runs (ConfigError names
-    the key): each refinement of the convergence study must be a multiple of the one
-    before, so that the coarse nodes lie on every finer grid, and the return-map window of
-    the chaos points must fit in the measured taps and hold every phase of the longest
-    period twice."""
+    the key): every column physical (:func:`_check_columns`), each refinement of the
+    convergence study a multiple of the one before, so that the coarse nodes lie on every
+    finer grid, and the return-map window of the chaos points inside the measured taps,
+    holding every phase of the longest period twice."""
     from ..errors import ConfigError
 
+    _check_columns(cfg)
     chaos = cfg.get("chaos", {})
     p_max = int(chaos.get("return_max_period", 6))
     window = int(chaos.get("return_taps", 12))
@@ -73,6 +74,60 @@ def check(cfg: Mapping) -> None:
                     f"config key 'column.continuum.convergence.{key}' = {ks}: each entry must "
                     "be a multiple of the one before (nested grids)"
                 )
+
+
+MIN_RELAXATION_N = 20
+"""The fewest particles of the relaxation column: the generic set of docs/column.md
+("N ≥ 20"); a shorter column has no bulk whose density relaxes."""
+
+BYTES_PER_PARTICLE = 1024
+"""A generous bound on a column job's memory per particle (state, RK4 stages, tangent
+vectors, return-map states), besides 16 bytes per particle and recorded sample."""
+
+
+def _check_columns(cfg: Mapping) -> None:
+    """Every physics block makes a column (:class:`granpipe.column.model.ColumnParams`:
+    a period longer than the tap, Eq. 2; an equilibrium stack, Eq. 28: K > N m g / r,
+    i.e. ``stiffness_factor`` > 1), the chaos grid's periods too; the relaxation column
+    has at least :data:`MIN_RELAXATION_N` particles; the plan and each job's memory fit
+    (ConfigError names the key and the constraint)."""
+    from ..config import check_memory, check_plan
+    from ..errors import ConfigError
+    from .model import equilibrium_positions, physics
+
+    def column(key, phys, samples=0):
+        check_memory(f"{key}.N", phys["N"], int(phys["N"]) * (BYTES_PER_PARTICLE + 16 * samples))
+        try:
+            equilibrium_positions(physics(phys))
+        except ConfigError as exc:
+            raise ConfigError(f"config key '{key}': {exc}") from None
+
+    fig1 = cfg["figure1"]
+    for name, phys in fig1["sets"].items():
+        samples = int(fig1.get("n_taps", 4) * phys["T"] / fig1.get("record_dt", 0.001)) + 1
+        column(f"column.figure1.sets.{name}", phys, samples)
+    relax = cfg["relaxation"]["physics"]
+    column("column.relaxation.physics", relax)
+    if int(relax["N"]) < MIN_RELAXATION_N:
+        raise ConfigError(
+            f"config key 'column.relaxation.physics.N' = {relax['N']}: the relaxation column "
+            f"needs N >= {MIN_RELAXATION_N} (the generic set, docs/column.md)"
+        )
+    chaos = cfg["chaos"]
+    for a in chaos["amplitudes"]:
+        for t in chaos["periods"]:
+            column("column.chaos.periods", {**chaos["physics"], "a": a, "T": t})
+    cont = cfg["continuum"]
+    conv = cont.get("convergence", {})
+    finest = max([int(cont.get(k, 16)) for k in ("lw_refinement", "bsr_refinement")]
+                 + [int(k) for k in conv.get("lw_refinements", [64])])  # fmt: skip
+    samples = int(cont.get("n_taps", 4) * cont["physics"]["T"] / cont.get("record_dt", 0.01)) + 1
+    column("column.continuum.physics", cont["physics"], samples * finest)
+    jobs = len(cfg["figure1"]["sets"]) + len(relaxation_batches(cfg)) + len(chaos_points(cfg))
+    check_plan(
+        "column.relaxation.n_replicas", jobs + 2,
+        "raise 'column.relaxation.batch_size' or shrink the chaos grid",
+    )  # fmt: skip
 
 
 def step_factor(cfg: Mapping) -> float:
