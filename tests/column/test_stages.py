@@ -23,6 +23,7 @@ SMALL = {
     "Gamma": 3.8476,
     "T": 0.6,
 }
+UNITS = {"length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s"}
 GENERIC = {
     "N": 4,
     "m": 0.001,
@@ -144,7 +145,7 @@ def test_stage_pipeline(tmp_path):
         [
             "fits",
             "--params",
-            j({"n_boot": 20, "inputs": inputs}),
+            j({"n_boot": 20, "units": UNITS, "inputs": inputs}),
             "--relaxation",
             str(ens_r),
             "--chaos",
@@ -165,7 +166,12 @@ def test_stage_pipeline(tmp_path):
         [
             "figures",
             "--params",
-            j({"inputs": {**inputs, "trajectories": {"N3": config_hash(traj_params)}}}),
+            j(
+                {
+                    "units": UNITS,
+                    "inputs": {**inputs, "trajectories": {"N3": config_hash(traj_params)}},
+                }
+            ),
             "--trajectories",
             str(traj),
             "--continuum",
@@ -259,7 +265,7 @@ def test_stage_pipeline(tmp_path):
     fits_args = [
         "fits",
         "--params",
-        j({"n_boot": 20, "inputs": inputs}),
+        j({"n_boot": 20, "units": UNITS, "inputs": inputs}),
         "--relaxation",
         str(ens_r),
     ]

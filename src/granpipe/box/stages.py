@@ -177,6 +177,8 @@ def runs_stage(
     periods = range(p0, p1)
     mu_w = float(physics["mu_side_walls"])
     point = layout.point_name(n_l, gamma, kind, mu_w)
+    if part > 0 and previous is None:
+        raise RunFileError(f"part {part} needs --previous (the run file of part {part - 1})")
     init_ds = read_dataset(init_file)
     # the prepared state of this point's (N_l, init, mu_w, replica), from this physics
     expect_input(
@@ -194,8 +196,6 @@ def runs_stage(
             start_spins=init_ds["spins"].values,
         )
     else:
-        if previous is None:
-            raise RunFileError(f"part {part} needs --previous (the run file of part {part - 1})")
         prev = read_dataset(previous)
         expect_input(
             prev, previous, study="box", stage="runs", point=point,
