@@ -138,6 +138,28 @@ def figures_cmd(params, ensembles, fits, snapshot, outdir):
     figures_stage(params, ensembles, fits, snapshot, outdir)
 
 
+@cli.command("restamp")
+@click.option(
+    "--configfile", type=click.Path(exists=True, dir_okay=False), required=True,
+    help="The config whose points the files are to serve.",
+)  # fmt: skip
+@click.argument("files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
+def restamp_cmd(configfile, files):
+    """Reuse init and run files (e.g. of a renamed point) under this config's point names.
+
+    Each file whose physics subset is that of a point of the config is written, data
+    untouched, to that point's folder (results/<scale>/drum/<init|runs>/<point>/) with
+    the point's name and config hash; a file whose physics no point has is refused.
+    """
+    from ..config import load
+    from .stages import restamp_stage
+
+    cfg = load(configfile)
+    if "drum" not in cfg:
+        raise click.BadParameter(f"{configfile} has no drum section", param_hint="--configfile")
+    restamp_stage(cfg["drum"], files, os.path.join(cfg["results"], cfg["scale"], "drum"))
+
+
 @cli.command("replica")
 @click.option(
     "--seed",

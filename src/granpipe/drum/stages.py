@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import RunFileError
+from ..errors import GranpipeError, RunFileError
 from ..io import check_run_files, config_hash, expect_input, read_dataset, write_dataset
 from .layout import ENSEMBLE_KEYS, load
 
@@ -29,6 +29,7 @@ __all__ = [
     "fits_stage",
     "summary_stage",
     "figures_stage",
+    "restamp_stage",
 ]
 
 STUDY = "drum"
@@ -245,3 +246,58 @@ def figures_stage(
         paths += save_figure(makers[k](), outdir / f"fig{k}_{name}", dpi=dpi)
     _log(f"wrote {len(paths)} figure files to {outdir}")
     return paths
+
+
+def restamp_stage(
+    section: Mapping, files: Sequence[str | os.PathLike], results: str | os.PathLike
+) -> list[Path]:
+    """Reuse init and run files under the point names of a config: each file whose
+    physics subset is that of a point of ``section`` (its stored config filled with this
+    version's defaults, against the point's simulation subset of
+    :func:`granpipe.drum.layout.rule_params`) is written, data untouched, to that point's
+    folder under ``results`` (``results/<scale>/drum``) with the point's name and config
+    hash, so that the stages accept it. A file whose physics no point has, or whose
+    target exists, is refused naming both.
+    """
+    from ..io import config_from_attrs
+    from .layout import init_file, point_sections, rule_params, run_file, trajectory_keys
+
+    sim = rule_params(section)["sim"]
+    points = point_sections(section)
+    targets = []
+    for f in files:
+        ds = read_dataset(f)
+        stage = ds.attrs.get("stage")
+        if ds.attrs.get("study") != STUDY or stage not in ("init", "runs"):
+            raise RunFileError(f"{f} is not a drum init or runs file")
+        try:
+            stored = load(config_from_attrs(ds))
+        except GranpipeError as exc:
+            raise RunFileError(f"{f}: its stored config is not a drum config here: {exc}") from None
+        have = {
+            **trajectory_keys(stored),
+            "ensemble": {"batch_size": stored["ensemble"]["batch_size"]},
+        }
+        name = next((n for n, want in sim.items() if want == have), None)
+        if name is None:
+            raise RunFileError(
+                f"{f} holds physics (point {ds.attrs.get('point')!r}) that no point of this "
+                f"config has (points: {', '.join(sim)}): it cannot be reused here"
+            )
+        where = init_file if stage == "init" else run_file
+        target = Path(results) / where(points[name], int(ds.attrs["batch"]))
+        if target.exists():
+            raise RunFileError(f"{f} would be written to {target}, which exists: remove it first")
+        targets.append((ds, f, name, target))
+    written = []
+    for ds, f, name, target in targets:
+        seeds = [int(s) for s in str(ds.attrs["seeds"]).split()]
+        write_dataset(
+            ds, target, config_subset=sim[name], seeds=seeds, study=STUDY,
+            stage=ds.attrs["stage"], batch=int(ds.attrs["batch"]), point=name,
+            restamped_from=f"{f} ({ds.attrs.get('point')}, config hash "
+            f"{str(ds.attrs.get('config_hash'))[:12]})",
+        )  # fmt: skip
+        _log(f"{f} -> {target}")
+        written.append(target)
+    return written
