@@ -212,7 +212,10 @@ MAX_SIMULATION_JOBS = 10_000
 """The most simulation jobs (init, runs, batches, points) one study's config may ask for.
 Snakemake's planning time grows with the number of jobs: the paper scale (2,939 jobs over
 the three studies, 1,560 of them the drum's) plans in 17 s, ~6 ms per job, so 10,000 jobs
-take about a minute before anything runs."""
+take about a minute before anything runs. The limit also keeps every batch and replica
+index inside the rules' four-digit patterns (a drum batch is two jobs, a box replica at
+least two, a column batch one, beside the two continuum jobs); the box's three-digit part
+numbers are checked on their own."""
 
 
 def check_plan(key: str, jobs: int, remedy: str) -> None:
