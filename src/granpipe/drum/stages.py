@@ -48,8 +48,8 @@ def _point(sec) -> str:
 def _section(params: Mapping):
     """The drum section of a later stage's ``--params`` (without the point, the run
     files' config hash and the row label: :func:`granpipe.drum.layout.rule_params`)."""
-    return load({k: v for k, v in params.items() if k not in ("point", "runs_config_hash",
-                                                               "label")})  # fmt: skip
+    section_keys = set(params) - {"point", "runs_config_hash", "label"}
+    return load({k: params[k] for k in section_keys})
 
 
 def init_stage(params: Mapping, batch: int, out: str | os.PathLike, threads: int = 1) -> Path:
