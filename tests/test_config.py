@@ -1,4 +1,5 @@
 import copy
+import re
 
 import pytest
 import yaml
@@ -171,6 +172,29 @@ def _quick(repo):
         (("column", "chaos", "return_max_period"), 0, "column.chaos.return_max_period"),
         (("column", "chaos", "return_tolerance"), 0.0, "column.chaos.return_tolerance"),
         (("column", "chaos", "return_tolerance"), "tight", "column.chaos.return_tolerance"),
+        # outputs outside <results>/<scale>/
+        (("scale",), "..", "'scale' = '..' is not a folder name"),
+        (("scale",), ".", "'scale' = '.' is not a folder name"),
+        (("scale",), "s" * 65, "'scale' is 65 characters long"),
+        (("results",), "/tmp/elsewhere", "'results' = '/tmp/elsewhere' must be relative"),
+        (("results",), "results/../..", "climbs out of the working directory"),
+        (("results",), ".", "is the working directory itself"),
+        (("results",), "r" * 300, "'results' is too long"),
+        # the physics: what a job would otherwise trip on after other jobs ran
+        (("column", "relaxation", "physics", "N"), 1, "'column.relaxation.physics.N' = 1"),
+        (("column", "relaxation", "physics", "stiffness_factor"), 1.0, "Eq. 28"),
+        (("column", "figure1", "sets", "N5", "stiffness_factor"), 0.5, "figure1.sets.N5': c"),
+        (("column", "relaxation", "physics", "T"), 0.01, "tap duration"),
+        (("column", "chaos", "periods"), [0.01, 1.2], "'column.chaos.periods': column: the pe"),
+        (("column", "relaxation", "n_replicas"), 10**6, "simulation jobs"),
+        (("column", "relaxation", "physics", "N"), 10**12, "GB of memory"),
+        (("drum", "physics", "n_small"), 3000, "more than the 0.45 random placement reaches"),
+        (("drum", "physics", "n_wall"), 8, "'n_wall' = 8"),
+        (("drum", "physics", "dt"), 10**400, "'drum.physics.dt' = 1000"),
+        (("drum", "fits", "seed"), 2**64, "'drum.fits.seed'"),
+        (("box", "physics", "Lx"), 1.5, "'box.physics.Lx' = 1.5 holds no crystal row"),
+        (("box", "grid", "N_l"), [10**9], "'box.grid.N_l' = 1000000000: one job would need"),
+        (("box", "protocol", "periods_per_part"), 1, None),
     ],
 )
 def test_refusals_before_any_job_name_the_key(repo, path, value, match):
@@ -181,8 +205,65 @@ def test_refusals_before_any_job_name_the_key(repo, path, value, match):
     below 1, a tolerance that is not a positive number."""
     cfg = _quick(repo)
     _set(cfg, path, value)
-    with pytest.raises(ConfigError, match=match.replace(".", r"\.")):
+    if match is None:  # parts numbered past the rules' three digits
+        cfg["box"]["protocol"]["measured_periods"] = 1001
+        cfg["box"]["grid"].update(Gamma=[1.0], inits=["crystal"])
+        match = "1001 parts per run, more than 1000"
+    with pytest.raises(ConfigError, match=re.escape(match)):
         config.validate(cfg)
+
+
+def test_drum_memory_is_checked_against_the_machine(repo):
+    cfg = _quick(repo)
+    cfg["drum"]["physics"].update(n_small=10**6, n_large=10**6, n_wall=10**9)
+    with pytest.raises(ConfigError, match=r"'drum\.physics\.n_small' = 1000000: one job"):
+        config.validate(cfg)
+
+
+def test_reasons_say_what_is_wrong_not_which_schema_branch(repo):
+    cfg = _quick(repo)
+    cfg["drum"]["physics"]["period_s"] = 0
+    with pytest.raises(ConfigError) as err:
+        config.validate(cfg)
+    assert "'drum.physics.period_s' = 0" in str(err.value) and "array" not in str(err.value)
+    assert "less than or equal to the minimum of 0" in str(err.value)
+    cfg["drum"]["physics"]["period_s"] = [900.0, -450.0]
+    with pytest.raises(ConfigError, match=r"'drum\.physics\.period_s\[1\]' = -450\.0"):
+        config.validate(cfg)
+
+
+def _bomb(tmp_path, repo, levels):
+    """A config whose scale is ``levels`` levels of aliases of ten items each."""
+    lines = ["a0: &a0 [x, x, x, x, x, x, x, x, x, x]"]
+    lines += [f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 10)}]" for i in range(1, levels)]
+    text = (
+        (repo / "config/quick.yaml").read_text().replace("scale: quick", f"scale: *a{levels - 1}")
+    )
+    path = tmp_path / f"bomb{levels}.yaml"
+    path.write_text("\n".join(lines) + "\n" + text)
+    return path
+
+
+def test_a_value_that_aliases_expand_is_shown_cut(tmp_path, repo):
+    """Aliases that expand to 10**5 items: the error names the key, its value cut short."""
+    with pytest.raises(ConfigError) as err:
+        config.load(_bomb(tmp_path, repo, 5))
+    assert "'scale' = [[[[" in str(err.value) and "characters)" in str(err.value)
+    assert len(str(err.value)) < 2000
+    # ten levels, 10**10 items: refused as it is read, before anything walks it
+    with pytest.raises(ConfigError, match=r"bomb10\.yaml expands .* more than 1000000 values"):
+        config.load(_bomb(tmp_path, repo, 10))
+
+
+def test_defaults_of_the_study_schemas_are_filled(repo):
+    """A box or column key left out takes its schema default (no KeyError in a check)."""
+    cfg = _quick(repo)
+    del cfg["box"]["grid"]["inits"], cfg["box"]["physics"]["Lx"]
+    del cfg["column"]["integrator"]
+    filled = config.validate(cfg)
+    assert filled["box"]["grid"]["inits"] == ["crystal", "random"]
+    assert filled["box"]["physics"]["Lx"] == 20.0
+    assert filled["column"]["integrator"]["step_factor"] == 0.1
 
 
 def test_yaml_errors_and_duplicate_keys_name_file_and_line(tmp_path, repo):

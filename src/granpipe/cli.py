@@ -19,18 +19,36 @@ from . import __version__
 from .config import STUDIES
 from .errors import GranpipeError
 
-__all__ = ["main", "cli", "params_option", "parse_params"]
+__all__ = ["main", "cli", "params_option", "parse_params", "INDEX", "THREADS", "POSITIVE"]
 
 
 def parse_params(text: str) -> dict:
-    """Parse the ``--params`` JSON text a rule passes (the rule's config subset)."""
+    """Parse the ``--params`` JSON text a rule passes (the rule's config subset); NaN and
+    infinities are refused (JSON has none; Python's reader would take them)."""
+
+    def refuse(constant):
+        raise click.BadParameter(f"{constant} is not a number a config may hold",
+                                 param_hint="--params")  # fmt: skip
+
     try:
-        value = json.loads(text)
+        value = json.loads(text, parse_constant=refuse)
     except json.JSONDecodeError as exc:
         raise click.BadParameter(f"not valid JSON: {exc}", param_hint="--params") from None
+    except RecursionError:
+        raise click.BadParameter("nested too deeply", param_hint="--params") from None
     if not isinstance(value, dict):
         raise click.BadParameter("must be a JSON object", param_hint="--params")
     return value
+
+
+INDEX = click.IntRange(0, 2**63 - 1)
+"""A batch, replica, part or seed index: 0 or more, a 64-bit integer."""
+
+THREADS = click.IntRange(1, 4096)
+"""Threads of a job: at least one."""
+
+POSITIVE = click.FloatRange(0, min_open=True)
+"""A number > 0 (Γ, a tap period)."""
 
 
 params_option = click.option(
@@ -90,8 +108,14 @@ def check_config(path):
 
 
 @cli.command("status")
-@click.option("--results", default="results", show_default=True, help="Results root.")
-@click.option("--configfile", default=None, help="Config whose expected batches to compare.")
+@click.option(
+    "--results", default="results", show_default=True, type=click.Path(file_okay=False),
+    help="Results root.",
+)  # fmt: skip
+@click.option(
+    "--configfile", default=None, type=click.Path(exists=True, dir_okay=False),
+    help="Config whose expected batches to compare.",
+)  # fmt: skip
 def status(results, configfile):
     """Per study and scale: batches present and missing, latest fitted numbers."""
     from .status import report
@@ -100,14 +124,16 @@ def status(results, configfile):
 
 
 def main(argv=None):
-    """Console-script entry point; turns granpipe errors into one clear line and exit 1."""
+    """Console-script entry point; turns granpipe errors and misused arguments into one
+    clear line (exit 1, or click's 2 for a usage error)."""
     try:
         cli.main(args=argv, prog_name="granpipe", standalone_mode=False)
     except click.exceptions.Abort:
         click.echo("aborted", err=True)
         sys.exit(1)
-    except click.ClickException as exc:
-        exc.show()
+    except click.ClickException as exc:  # a misused argument: one line naming it
+        hint = " (see --help)" if isinstance(exc, click.UsageError) else ""
+        click.echo(f"granpipe: error: {exc.format_message()}{hint}", err=True)
         sys.exit(exc.exit_code)
     except GranpipeError as exc:
         click.echo(f"granpipe: error: {exc}", err=True)

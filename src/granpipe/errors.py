@@ -14,6 +14,11 @@ class RunFileError(GranpipeError, ValueError):
     message names the file."""
 
 
+class WriteError(GranpipeError):
+    """A stage could not write its output; the message names the file and the operating
+    system's reason (e.g. ``No space left on device (ENOSPC)``)."""
+
+
 class SimulationError(GranpipeError, RuntimeError):
     """A simulation reached a bad state (NaN/inf, or an overlap past the bound).
 

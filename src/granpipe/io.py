@@ -4,14 +4,22 @@ Every data variable and coordinate written by granpipe carries ``units`` and
 ``long_name``; every file carries global attributes naming the granpipe version,
 the git commit, the config subset it depends on (YAML text) and its hash, the
 seeds used, and the creation time. Files are written to a temporary name in the
-target folder and renamed into place, so a killed job never leaves a partial file
-under the final name.
+target folder, read back, made readable as the umask allows, and renamed into place,
+so a killed job or a full disk never leaves a partial file under the final name; a
+write that fails names the file and the operating system's reason
+(:class:`~granpipe.errors.WriteError`).
+
+A stage reads only the files it was asked for: :func:`expect_input` and
+:func:`check_run_files` compare each input's recorded study, stage, point and config
+hash with the ones the stage derives from its own ``--params``
+(:class:`~granpipe.errors.RunFileError` names the file and both values).
 """
 
 from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import errno as _errno
 import glob
 import os
 import subprocess
@@ -24,7 +32,7 @@ import xarray as xr
 import yaml
 
 from . import __version__
-from .errors import RunFileError
+from .errors import RunFileError, WriteError
 from .seeds import physics_hash
 
 __all__ = [
@@ -34,12 +42,14 @@ __all__ = [
     "atomic_path",
     "write_dataset",
     "read_dataset",
+    "open_input",
     "write_text",
     "config_from_attrs",
     "config_hash",
-    "expect_attrs",
+    "expect_input",
     "check_run_files",
     "RunFileError",
+    "WriteError",
 ]
 
 _ENGINE = "netcdf4"
@@ -112,17 +122,6 @@ def config_hash(config_subset: Mapping) -> str:
     return physics_hash(_plain(dict(config_subset)))
 
 
-def expect_attrs(ds: xr.Dataset, path: str | os.PathLike, **want) -> None:
-    """Check that ``ds`` (read from ``path``) carries the attributes ``want`` (compared as
-    text, so 0.6 and "0.6" agree); RunFileError names the file, the key and both values."""
-    for key, value in want.items():
-        have = ds.attrs.get(key)
-        if have is None or str(have) != str(value):
-            raise RunFileError(
-                f"{path} is not the expected input: attribute {key} = {have!r}, expected {value!r}"
-            )
-
-
 def _plain(obj):
     """Convert numpy scalars/arrays and tuples inside a mapping into YAML-safe builtins."""
     if isinstance(obj, Mapping):
@@ -154,29 +153,60 @@ def check_labels(ds: xr.Dataset) -> None:
         )
 
 
+# ------------------------------------------------------------------------ writing
+def _os_reason(exc: OSError) -> str:
+    """``No space left on device (ENOSPC)``: the OS error's text and symbolic name."""
+    name = _errno.errorcode.get(exc.errno or 0)
+    text = exc.strerror or str(exc)
+    return f"{text} ({name})" if name else text
+
+
+def _umask() -> int:
+    """The process's umask (read without changing it where Linux allows)."""
+    with contextlib.suppress(OSError, ValueError):
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path in the target's folder; rename it onto ``path`` on success.
 
     On any exception (or if the process dies) the final name is never created or
     touched; the temporary file is removed where possible, and one left by a killed
-    earlier attempt at the same path is removed when the next attempt starts.
+    earlier attempt at the same path is removed when the next attempt starts. The file
+    gets the permissions an ordinary ``open`` would give it (0666 less the umask), not
+    the private 0600 of a temporary file. An operating-system error while creating,
+    writing or renaming it (a full disk, a file-size limit, a folder without write
+    permission) raises :class:`~granpipe.errors.WriteError` naming ``path`` and the
+    reason.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    # temporary files of an earlier attempt at this same file that was killed (SIGKILL
-    # skips the cleanup below); the workflow never writes one file from two jobs at once
-    for stale in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):
-        stale.unlink(missing_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        # temporary files of an earlier attempt at this same file that was killed (SIGKILL
+        # skips the cleanup below); the workflow never writes one file from two jobs at once
+        for stale in path.parent.glob(f".{glob.escape(path.name)}.*.tmp"):
+            stale.unlink(missing_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        os.close(fd)
+    except OSError as exc:
+        raise WriteError(f"cannot write {path}: {_os_reason(exc)}") from None
     tmp = Path(tmp)
     try:
-        yield tmp
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        _fault_injection_pause()
-        os.replace(tmp, path)
+        try:
+            yield tmp
+            with open(tmp, "rb") as fh:
+                os.fsync(fh.fileno())
+            os.chmod(tmp, 0o666 & ~_umask())
+            _fault_injection_pause()
+            os.replace(tmp, path)
+        except OSError as exc:
+            raise WriteError(f"cannot write {path}: {_os_reason(exc)}") from None
     finally:
         if tmp.exists():
             tmp.unlink()
@@ -195,6 +225,20 @@ def _fault_injection_pause() -> None:
         time.sleep(float(delay))
 
 
+def _netcdf_bytes(ds: xr.Dataset, encoding: Mapping) -> memoryview:
+    """The netCDF-4 file of ``ds`` built in memory (written to disk by Python, whose
+    errors carry the operating system's reason, where the netCDF library's do not)."""
+    import netCDF4
+
+    nc = netCDF4.Dataset("granpipe.nc", "w", memory=1, format="NETCDF4")
+    try:
+        ds.dump_to_store(xr.backends.NetCDF4DataStore(nc), encoding=encoding)
+    except BaseException:
+        nc.close()
+        raise
+    return nc.close()
+
+
 def write_dataset(
     ds: xr.Dataset,
     path: str | os.PathLike,
@@ -206,7 +250,9 @@ def write_dataset(
     """Write ``ds`` to netCDF-4 at ``path`` atomically, with provenance attributes.
 
     Every variable and coordinate must carry ``units`` and ``long_name``
-    (:func:`check_labels`). Data variables are zlib-compressed losslessly.
+    (:func:`check_labels`). Data variables are zlib-compressed losslessly. The file is
+    read back before it takes its final name: one that does not hold what was written
+    raises :class:`~granpipe.errors.WriteError`, and the final name is never touched.
     """
     check_labels(ds)
     ds = ds.copy()
@@ -216,9 +262,56 @@ def write_dataset(
         for name, var in ds.data_vars.items()
         if var.dtype.kind in "fiub"
     }
+    data = _netcdf_bytes(ds, encoding)
     with atomic_path(path) as tmp:
-        ds.to_netcdf(tmp, engine=_ENGINE, format="NETCDF4", encoding=encoding)
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+        try:
+            with xr.open_dataset(tmp, engine=_ENGINE) as back:
+                same = back.load().drop_attrs().equals(ds.drop_attrs())
+        except (OSError, ValueError, RuntimeError) as exc:
+            raise WriteError(f"cannot write {path}: it does not read back ({exc})") from None
+        if not same:
+            raise WriteError(f"cannot write {path}: it does not read back as written")
     return Path(path)
+
+
+def write_text(text: str, path: str | os.PathLike) -> Path:
+    """Write a text file (CSV, YAML) atomically; it is read back before its rename."""
+    with atomic_path(path) as tmp:
+        Path(tmp).write_text(text)
+        if Path(tmp).read_text() != text:
+            raise WriteError(f"cannot write {path}: it does not read back as written")
+    return Path(path)
+
+
+# ------------------------------------------------------------------------ reading
+def _unreadable(path, exc: BaseException) -> RunFileError:
+    """The one message for an input that cannot be read: its name, the reason, and, for
+    a file that exists but is not a readable netCDF file, what to do."""
+    if isinstance(exc, OSError) and exc.errno and exc.errno > 0:
+        return RunFileError(f"cannot read {path}: {_os_reason(exc)}")
+    reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+    return RunFileError(
+        f"cannot read {path}: {reason}. The file is damaged (truncated or overwritten) or not "
+        "a granpipe file: remove it and rerun, and the workflow computes it again, "
+        "bit-identically"
+    )
+
+
+@contextlib.contextmanager
+def open_input(path: str | os.PathLike) -> Iterator[xr.Dataset]:
+    """Open a netCDF input lazily; a file that cannot be opened or whose data cannot be
+    read raises :class:`~granpipe.errors.RunFileError` naming it and what to do."""
+    try:
+        ds = xr.open_dataset(path, engine=_ENGINE)
+    except (OSError, ValueError, RuntimeError) as exc:
+        raise _unreadable(path, exc) from None
+    with ds:
+        try:
+            yield ds
+        except (OSError, RuntimeError) as exc:  # a damaged chunk met while reading data
+            raise _unreadable(path, exc) from None
 
 
 def read_dataset(path: str | os.PathLike) -> xr.Dataset:
@@ -229,11 +322,57 @@ def read_dataset(path: str | os.PathLike) -> xr.Dataset:
     RunFileError
         naming the file, if it is missing or not a readable netCDF file.
     """
-    try:
-        with xr.open_dataset(path, engine=_ENGINE) as ds:
-            return ds.load()
-    except (OSError, ValueError, RuntimeError) as exc:
-        raise RunFileError(f"cannot read {path}: {exc}") from exc
+    with open_input(path) as ds:
+        return ds.load()
+
+
+def expect_input(
+    ds: xr.Dataset | Mapping,
+    path: str | os.PathLike,
+    *,
+    study: str,
+    stage: str,
+    point: str | None = None,
+    config_hash: str | None = None,
+    **want,
+) -> None:
+    """Check that the file ``path`` (its dataset or attributes ``ds``) is the input the
+    stage was asked for: written by ``study``'s stage ``stage``, for ``point`` and from
+    the config subset whose hash is ``config_hash`` (each as the stage derives it from its
+    own ``--params``; ``None``: not checked), with the attributes ``want`` (compared as
+    text, so 0.6 and "0.6" agree).
+
+    Raises
+    ------
+    RunFileError
+        naming the file, the attribute, the value it holds and the value expected.
+    """
+    attrs = ds.attrs if isinstance(ds, xr.Dataset) else ds
+    for key, value in (("study", study), ("stage", stage)):
+        if attrs.get(key) != value:
+            raise RunFileError(
+                f"{path} is not a {study} {stage} file (it says study = "
+                f"{attrs.get('study')!r}, stage = {attrs.get('stage')!r})"
+            )
+    if point is not None and str(attrs.get("point")) != str(point):
+        raise RunFileError(
+            f"{path} belongs to point {attrs.get('point')!r}, not to {point!r}, the point this "
+            "stage was asked for"
+        )
+    for key, value in want.items():
+        have = attrs.get(key)
+        if have is None or str(have) != str(value):
+            raise RunFileError(
+                f"{path} is not the expected input: attribute {key} = {have!r}, expected {value!r}"
+            )
+    if config_hash is not None and attrs.get("config_hash") != config_hash:
+        what = f" of point {point!r}" if point is not None else ""
+        raise RunFileError(
+            f"{path} was computed from another configuration (config hash "
+            f"{str(attrs.get('config_hash'))[:12]}) than the one this stage was asked for"
+            f"{what} ({config_hash[:12]}): another point's file, or one computed before the "
+            "physics changed"
+        )
 
 
 def _batch_of(path: Path) -> int | None:
@@ -244,13 +383,23 @@ def _batch_of(path: Path) -> int | None:
 
 
 def check_run_files(
-    paths: Sequence[str | os.PathLike], *, study: str, stage: str = "runs"
+    paths: Sequence[str | os.PathLike],
+    *,
+    study: str,
+    config_hash: str,
+    point: str | None = None,
+    stage: str = "runs",
+    **want,
 ) -> list[dict]:
-    """Check that run files belong together before they are reduced; return their labels.
+    """Check that run files are the ones a stage was asked for before it reduces them;
+    return their labels.
 
-    Every file must be readable, written by ``study``'s stage ``stage``, with the same
-    config hash (the same point and physics) as the first; a file named ``batch_<b>.nc``
-    must hold batch ``b``; no replica index may appear twice across the files.
+    Every file must be readable, written by ``study``'s stage ``stage`` for ``point``
+    (if given) from the config subset whose hash is ``config_hash`` (both as the stage
+    derives them from its own ``--params``, never from another input); a file named
+    ``batch_<b>.nc`` must hold batch ``b``; no replica index may appear twice across
+    the files; further attributes ``want`` as in :func:`expect_input`. One file open at
+    a time.
 
     Returns
     -------
@@ -259,28 +408,17 @@ def check_run_files(
     Raises
     ------
     RunFileError
-        naming the offending file (and the other file, for a duplicate or a mismatch).
+        naming the offending file (and the other file, for a duplicate).
     """
     out: list[dict] = []
     seen: dict[int, str] = {}
     for p in map(Path, paths):
-        try:
-            with xr.open_dataset(p, engine=_ENGINE) as ds:
-                attrs = dict(ds.attrs)
-                replicas = [int(r) for r in ds["replica"].values] if "replica" in ds else []
-        except (OSError, ValueError, RuntimeError) as exc:
-            raise RunFileError(f"cannot read {p}: {exc}") from exc
-        for key, want in (("study", study), ("stage", stage)):
-            if attrs.get(key) != want:
-                raise RunFileError(
-                    f"{p} is not a {study} {stage} file ({key} = {attrs.get(key)!r})"
-                )
-        if out and attrs.get("config_hash") != out[0]["config_hash"]:
-            raise RunFileError(
-                f"{p} was computed with another configuration (config hash "
-                f"{str(attrs.get('config_hash'))[:12]}) than {out[0]['path']} "
-                f"({out[0]['config_hash'][:12]}): another point or changed physics"
-            )
+        with open_input(p) as ds:
+            attrs = dict(ds.attrs)
+            replicas = [int(r) for r in ds["replica"].values] if "replica" in ds else []
+        expect_input(
+            attrs, p, study=study, stage=stage, point=point, config_hash=config_hash, **want
+        )
         named = _batch_of(p)
         batch = attrs.get("batch")
         if named is not None and batch is not None and int(batch) != named:
@@ -294,10 +432,3 @@ def check_run_files(
              "config_hash": str(attrs.get("config_hash"))}
         )  # fmt: skip
     return out
-
-
-def write_text(text: str, path: str | os.PathLike) -> Path:
-    """Write a text file (CSV, YAML) atomically."""
-    with atomic_path(path) as tmp:
-        Path(tmp).write_text(text)
-    return Path(path)

@@ -123,6 +123,10 @@ def test_thresholds_interpolate_between_bracketing_grid_points():
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_segmented_and_arrhenius_fits_cover_the_truth(seed):
+    """Each interval covers the truth and is no wider than the data allow: at 5 % scatter
+    of T_g* over 17 points and 20,000 trials per point, the widths seen over these seeds
+    are at most 0.22 of a breakpoint, 0.44 in a slope and 0.55 of a barrier; the bounds
+    below are about twice that (an infinite or a useless interval fails)."""
     table = _table(seed)
     tfits = fits.temperature_fits(table, FITS)
     sfits = fits.slip_fits(table, tfits, FITS)
@@ -132,12 +136,15 @@ def test_segmented_and_arrhenius_fits_cover_the_truth(seed):
             K_BREAK[init], tf["breakpoints_K_m"], tf["breakpoints_K_m_ci"], strict=True
         ):
             assert lo <= true <= hi, (init, n_l, true, est, lo, hi)
+            assert hi - lo < 0.5 * true, (init, n_l, true, lo, hi)
         for true, (lo, hi) in zip(SLOPES[init], tf["slope_ci"], strict=True):
             assert lo <= true <= hi
+            assert hi - lo < 1.0, (init, n_l, true, lo, hi)
         slip = sfits[(init, n_l, walls)]
         for region, true in E_B[init].items():
             af = slip[region]
             assert af.E_b_ci[0] <= true <= af.E_b_ci[1], (init, region, af.E_b, af.E_b_ci)
+            assert af.E_b_ci[1] - af.E_b_ci[0] < 1.2 * true, (init, region, af.E_b_ci)
         if init == "crystal":
             # A1 has no slip: no barrier, only upper bounds, and the paper's "exactly zero"
             assert math.isnan(slip["A1"].E_b) and len(slip["A1"].zero_upper) > 0

@@ -6,6 +6,7 @@ import pytest
 
 from granpipe.box import layout
 from granpipe.config import load
+from granpipe.io import config_hash
 
 from .conftest import SECTION
 
@@ -85,7 +86,21 @@ def test_stage_subsets_hold_only_what_the_stage_reads():
     # the plate rests while a state is prepared: the side walls' drive is not part of it
     assert "side_walls" not in layout.init_params(SECTION, W6)["physics"]
     assert set(layout.ensemble_params(SECTION)) == {"Lx", "detection", "slips", "order"}
-    assert set(layout.fits_params(SECTION)) == {"detection", "fits"}
+    # a point's ensemble also names the files it reduces: the point, its replicas and
+    # the config hash of each part's run files
+    point = layout.point_name(*layout.points(SECTION)[0])
+    one = layout.ensemble_params(SECTION, point)
+    assert set(one) - {"Lx", "detection", "slips", "order"} == {
+        "point", "replicas", "runs_config_hashes"
+    }  # fmt: skip
+    walls = layout.parse_point(point)[3]
+    assert one["runs_config_hashes"] == [
+        config_hash(layout.runs_params(SECTION, p, walls)) for p in range(layout.n_parts(SECTION))
+    ]
+    fits = layout.fits_params(SECTION)
+    assert set(fits) == {"detection", "fits", "points"}
+    assert fits["points"][point] == config_hash(one)
+    assert set(fits["points"]) == {layout.point_name(*pt) for pt in layout.points(SECTION)}
     assert "resources" not in str(layout.runs_params(SECTION, 0, W6))
 
 

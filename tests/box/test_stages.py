@@ -5,6 +5,8 @@ figures, at two side-wall frictions; checks what each file must hold and that a 
 refuses a file that is not its input, not the physics (test_physics.py does that).
 """
 
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -39,7 +41,7 @@ def pipeline(tmp_path_factory):
                 log=None,
             )  # fmt: skip
         stages.ensemble_stage(
-            layout.ensemble_params(sec),
+            layout.ensemble_params(sec, layout.point_name(n_l, gamma, init, walls)),
             [root / f for f in layout.point_run_files(sec, n_l, gamma, init, walls)],
             root / layout.ensemble_file(n_l, gamma, init, walls),
             log=None,
@@ -140,13 +142,101 @@ def test_stages_refuse_files_that_are_not_their_inputs(pipeline, tmp_path):
             root / layout.init_file(5, "crystal", W6, 0), tmp_path / "run.nc",
             previous=wrong_part, log=None,
         )  # fmt: skip
+    point = layout.point_name(5, 2.0, "crystal", 0.6)
     mixed = [
         root / layout.run_file(5, 2.0, "crystal", W6, 0, 0),
         root / layout.run_file(5, 1.4, "crystal", W6, 0, 1),
     ]
     with pytest.raises(RunFileError, match="point"):
-        stages.ensemble_stage(layout.ensemble_params(sec), mixed, tmp_path / "e.nc", log=None)
+        stages.ensemble_stage(
+            layout.ensemble_params(sec, point), mixed, tmp_path / "e.nc", log=None
+        )
     twice = [root / layout.run_file(5, 2.0, "crystal", W6, 0, 0)] * 2
     with pytest.raises(RunFileError, match="twice"):
-        stages.ensemble_stage(layout.ensemble_params(sec), twice, tmp_path / "e.nc", log=None)
+        stages.ensemble_stage(
+            layout.ensemble_params(sec, point), twice, tmp_path / "e.nc", log=None
+        )
     assert not (tmp_path / "run.nc").exists() and not (tmp_path / "e.nc").exists()
+
+
+def test_a_point_folder_swapped_for_another_points_is_refused_naming_both(pipeline, tmp_path):
+    """Every run file of Γ = 2.0 copied into the Γ = 0.7 folder: the files agree with each
+    other but not with the point the ensemble stage was asked for; the other point's
+    ensemble under this point's name is refused by the fits and figures."""
+    sec, root = pipeline
+    want, other = (layout.point_name(5, g, "random", W6) for g in (0.7, 2.0))
+    swapped = [tmp_path / "runs" / want / f"replica_0000.part_{p:03d}.nc" for p in range(2)]
+    for p, dest in enumerate(swapped):
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        dest.write_bytes((root / layout.run_file(5, 2.0, "random", W6, 0, p)).read_bytes())
+    both = rf"belongs to point '{re.escape(other)}', not to '{re.escape(want)}'"
+    with pytest.raises(RunFileError, match=both):
+        stages.ensemble_stage(layout.ensemble_params(sec, want), swapped, tmp_path / "e.nc",
+                              log=None)  # fmt: skip
+    # the ensembles with one point's file under another's name: refused naming the point
+    # twice (and the file) before any fit or duplicate summary row
+    ens = [root / f for f in layout.ensemble_files(sec)]
+    copied = tmp_path / "ensemble" / f"{want}.nc"
+    copied.parent.mkdir()
+    copied.write_bytes((root / layout.ensemble_file(5, 2.0, "random", W6)).read_bytes())
+    ens = [copied if p.stem == want else p for p in ens]
+    with pytest.raises(RunFileError, match=rf"point {re.escape(other)} appears twice"):
+        stages.fits_stage(layout.fits_params(sec), ens, tmp_path / "fits", log=None)
+    with pytest.raises(RunFileError, match=rf"point {re.escape(other)} appears twice"):
+        stages.figures_stage(
+            layout.figures_params(sec), root / "fits", [root / f for f in layout.init_files(sec)],
+            ens, tmp_path / "figures", log=None,
+        )  # fmt: skip
+    assert not (tmp_path / "e.nc").exists() and not (tmp_path / "fits").exists()
+    assert not (tmp_path / "figures").exists()
+
+
+def test_a_grid_of_crystal_starts_only_fits(pipeline, tmp_path):
+    """``grid.inits: [crystal]``: the fits and figures run on the crystal points alone, also
+    when no crystal stayed intact (then no threshold is fitted, and the table says so)."""
+    sec, root = pipeline
+    crystal = {**sec, "grid": {**sec["grid"], "inits": ["crystal"]}}
+    ens = [root / f for f in layout.ensemble_files(crystal)]
+    assert ens and all("init=crystal" in p.name for p in ens)
+    stages.fits_stage(layout.fits_params(crystal), ens, tmp_path / "fits", log=None)
+    summary = read_summary(tmp_path / "fits" / "summary.csv")
+    assert set(summary["quantity"]) >= {
+        f"psi6_at_measurement_start[{layout.point_name(*pt)}]" for pt in layout.points(crystal)
+    }
+    assert not any("init=random" in q for q in summary["quantity"])
+    intact = summary.set_index("quantity")["value"]
+    for mu_w in ("0.6", "0.0"):
+        group = f"[N_l=5,init=crystal,mu_w={mu_w},walls=shaken,torque=lever]"
+        assert (f"Gamma_bouncing{group}" in intact) == (intact[f"crystal_intact_points{group}"] > 0)
+    paths = stages.figures_stage(
+        layout.figures_params(crystal), tmp_path / "fits",
+        [root / f for f in layout.init_files(crystal)], ens, tmp_path / "figures", log=None,
+    )  # fmt: skip
+    assert {p.name for p in paths} >= {f"{stem}.png" for stem in layout.FIGURES.values() if
+                                        stem != "fig1_snapshots"}  # fmt: skip
+    # no crystal intact at all: no group to fit, every table still has its columns
+    from granpipe.box import fits
+
+    table = fits.points_table(ens).assign(crystal_intact=0)
+    table["used"] = fits.used_mask(table)
+    ths = fits.thresholds_table(table, sec["detection"])
+    assert ths.empty and list(ths.columns) == list(fits.THRESHOLD_COLUMNS)
+    tfits = fits.temperature_fits(table, sec["fits"])
+    sfits = fits.slip_fits(table, tfits, sec["fits"])
+    assert fits.fits_datasets(table, ths, tfits, sfits)["phase_diagram"].sizes["threshold"] == 0
+    rows = fits.summary_rows(table, ths, tfits, sfits)
+    assert {r["quantity"] for r in rows if r["quantity"].startswith("crystal_intact")} == {
+        f"crystal_intact_points[N_l=5,init=crystal,mu_w={m},walls=shaken,torque=lever]"
+        for m in ("0.6", "0.0")
+    }
+
+
+def test_summary_holds_no_wall_clock_cost(pipeline):
+    """The costs are in fits/costs.csv; summary.csv holds only what two runs of one config
+    give alike."""
+    _, root = pipeline
+    summary = read_summary(root / "fits" / "summary.csv")
+    costs = read_summary(root / "fits" / "costs.csv")
+    assert not any("cost" in q for q in summary["quantity"])
+    assert len(costs) and all(q.startswith("cost_ns_per_particle_step[") for q in costs["quantity"])
+    assert (costs["value"] > 0).all() and set(costs["unit"]) == {"ns"}

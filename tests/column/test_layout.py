@@ -7,6 +7,7 @@ import pytest
 
 from granpipe.column import layout
 from granpipe.config import load
+from granpipe.io import config_hash
 
 
 @pytest.fixture(scope="module")
@@ -24,9 +25,28 @@ def test_rule_params_are_the_per_rule_subsets(section):
     assert p["chaos"] == layout.chaos_params(section)
     assert p["continuum"] == layout.continuum_params(section)
     assert p["convergence"] == layout.continuum_params(section, True)
-    assert p["ensemble_relaxation"] == {"kind": "relaxation"}
-    assert p["ensemble_chaos"] == {"confidence": section["chaos"].get("confidence", 0.95)}
+    # each reduction names the config hash of every file it may read
+    assert p["ensemble_relaxation"] == {
+        "kind": "relaxation", "runs_config_hash": config_hash(p["relaxation"])
+    }  # fmt: skip
+    chaos = p["ensemble_chaos"]
+    assert chaos["confidence"] == section["chaos"].get("confidence", 0.95)
+    assert list(chaos["points"]) == layout.chaos_points(section)
+    first = layout.chaos_points(section)[0]
+    a, t = (float(v.split("=")[1]) for v in first.split(","))
+    assert chaos["points"][first] == config_hash(
+        {**p["chaos"], "physics": {**p["chaos"]["physics"], "a": a, "T": t}}
+    )
     assert p["fits"]["units"] == p["figures"]["units"] == layout.units(section)
+    assert p["fits"]["inputs"] == {
+        "relaxation": config_hash(p["ensemble_relaxation"]),
+        "chaos": config_hash(chaos),
+        "continuum": config_hash(p["continuum"]),
+        "convergence": config_hash(p["convergence"]),
+    }
+    assert p["figures"]["inputs"]["trajectories"] == {
+        name: config_hash(sub) for name, sub in p["trajectories"].items()
+    }
     json.dumps(p, sort_keys=True)  # what the rules pass as --params
 
 
@@ -38,6 +58,6 @@ def test_an_edit_changes_only_the_rules_that_read_it(section):
     changed = {k for k in before if before[k] != after[k]}
     assert changed == {"fits"}
     edited["chaos"]["confidence"] = 0.9
-    assert layout.rule_params(edited)["ensemble_chaos"] == {"confidence": 0.9}
+    assert layout.rule_params(edited)["ensemble_chaos"]["confidence"] == 0.9
     with pytest.raises(ValueError):
         layout.ensemble_params(section, "trajectories")

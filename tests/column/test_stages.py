@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from granpipe.column.cli import cli
-from granpipe.io import read_dataset
+from granpipe.io import config_hash, read_dataset
 
 SMALL = {
     "N": 3,
@@ -23,6 +23,7 @@ SMALL = {
     "Gamma": 3.8476,
     "T": 0.6,
 }
+UNITS = {"length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s"}
 GENERIC = {
     "N": 4,
     "m": 0.001,
@@ -45,11 +46,12 @@ def _run(args):
 def test_stage_pipeline(tmp_path):
     j = json.dumps
     traj = tmp_path / "runs" / "trajectories_N3.nc"
+    traj_params = {"sets": {"N3": SMALL}, "n_taps": 1, "record_dt": 0.01, "step_factor": 0.2}
     _run(
         [
             "trajectories",
             "--params",
-            j({"sets": {"N3": SMALL}, "n_taps": 1, "record_dt": 0.01, "step_factor": 0.2}),
+            j(traj_params),
             "--set",
             "N3",
             "--out",
@@ -102,11 +104,22 @@ def test_stage_pipeline(tmp_path):
     _run(["continuum", "--params", j(contp), "--out", str(comp)])
     _run(["convergence", "--params", j(contp), "--out", str(conv)])
     ens_r, ens_c = tmp_path / "ensemble" / "relaxation.nc", tmp_path / "ensemble" / "chaos.nc"
+    # what each stage is asked for: the config hashes of the files it reads
+    relax_params = {"kind": "relaxation", "runs_config_hash": config_hash(rp)}
+    points = {
+        f"a={a:g},T=0.3": config_hash({**cp, "physics": {**GENERIC, "a": a, "T": 0.3}})
+        for a in (0.0002, 0.005)
+    }
+    chaos_params = {"confidence": 0.95, "points": points}
+    inputs = {
+        "relaxation": config_hash(relax_params), "chaos": config_hash(chaos_params),
+        "continuum": config_hash(contp), "convergence": config_hash(contp),
+    }  # fmt: skip
     _run(
         [
             "ensemble",
             "--params",
-            j({"kind": "relaxation"}),
+            j(relax_params),
             "--kind",
             "relaxation",
             "--out",
@@ -118,7 +131,7 @@ def test_stage_pipeline(tmp_path):
         [
             "ensemble",
             "--params",
-            j({"confidence": 0.95}),
+            j(chaos_params),
             "--kind",
             "chaos",
             "--out",
@@ -132,7 +145,7 @@ def test_stage_pipeline(tmp_path):
         [
             "fits",
             "--params",
-            j({"n_boot": 20}),
+            j({"n_boot": 20, "units": UNITS, "inputs": inputs}),
             "--relaxation",
             str(ens_r),
             "--chaos",
@@ -153,7 +166,12 @@ def test_stage_pipeline(tmp_path):
         [
             "figures",
             "--params",
-            j({}),
+            j(
+                {
+                    "units": UNITS,
+                    "inputs": {**inputs, "trajectories": {"N3": config_hash(traj_params)}},
+                }
+            ),
             "--trajectories",
             str(traj),
             "--continuum",
@@ -224,19 +242,33 @@ def test_stage_pipeline(tmp_path):
 
     copied = tmp_path / "runs" / "batch_0000.nc"
     shutil.copy(relax[1], copied)  # a valid batch 1 under batch 0's name
-    ens_args = ["ensemble", "--params", j({}), "--kind", "relaxation", "--out"]
+    ens_args = ["ensemble", "--params", j(relax_params), "--kind", "relaxation", "--out"]
     refused([*ens_args, str(tmp_path / "x.nc"), str(copied)], r"batch_0000\.nc holds batch 1")
     refused([*ens_args, str(tmp_path / "x.nc"), str(relax[0]), str(relax[0])], "appears twice")
     refused([*ens_args, str(tmp_path / "x.nc"), str(chaos[0])], r"chaos_.*kind = 'chaos'")
-    chaos_args = ["ensemble", "--params", j({}), "--kind", "chaos", "--out", str(tmp_path / "y.nc")]
+    # batches of another column (every one of them): refused naming both hashes
+    other = {**relax_params, "runs_config_hash": config_hash({**rp, "n_taps": 4})}
+    refused(["ensemble", "--params", j(other), "--kind", "relaxation", "--out",
+             str(tmp_path / "x.nc"), *map(str, relax)],
+            rf"relax_0\.nc was computed from another configuration \(config hash "
+            rf"{config_hash(rp)[:12]}\).*\({other['runs_config_hash'][:12]}\)")  # fmt: skip
+    chaos_args = ["ensemble", "--params", j(chaos_params), "--kind", "chaos", "--out",
+                  str(tmp_path / "y.nc")]  # fmt: skip
     refused([*chaos_args, str(chaos[0]), str(chaos[0])], "appears twice")
+    refused([*chaos_args, str(chaos[0])], r"no file of the chaos point\(s\) a=0\.005,T=0\.3")
     renamed = tmp_path / "runs" / "a=0.1,T=0.3.nc"
     shutil.copy(chaos[0], renamed)
-    refused([*chaos_args, str(renamed)], r"a=0\.1,T=0\.3\.nc holds the point a=0\.0002")
+    refused([*chaos_args, str(renamed)], r"a=0\.1,T=0\.3\.nc holds the point a=0\.0002,T=0\.3, not")
     garbage = tmp_path / "runs" / "broken.nc"
     garbage.write_bytes(b"not a netCDF file")
     refused([*chaos_args, str(garbage)], r"cannot read .*broken\.nc")
-    fits_args = ["fits", "--params", j({"n_boot": 20}), "--relaxation", str(ens_r)]
+    fits_args = [
+        "fits",
+        "--params",
+        j({"n_boot": 20, "units": UNITS, "inputs": inputs}),
+        "--relaxation",
+        str(ens_r),
+    ]
     fits_args += ["--chaos", str(ens_c), "--out-csv", str(tmp_path / "s.csv")]
     fits_args += ["--out-nc", str(tmp_path / "f.nc"), "--out-note", str(tmp_path / "n.md")]
     swapped = ["--continuum", str(conv), "--convergence", str(comp)]

@@ -1,5 +1,7 @@
 """init → runs → ensemble → fits → figures through the stage functions, on a tiny drum."""
 
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -14,6 +16,7 @@ from granpipe.drum.stages import (
     runs_stage,
     summary_stage,
 )
+from granpipe.errors import RunFileError
 from granpipe.io import read_dataset
 
 # three tiny-drum replicas: many resamples have no crossing, as expected
@@ -48,7 +51,7 @@ def pipeline(tiny, tmp_path_factory):
             init_stage(params["sim"][name], b, init)
             runs_stage(params["sim"][name], b, init, run)
             runs.append(run)
-        ensemble_stage(params["ensemble"], runs, tmp / "ensemble" / f"{name}.nc")
+        ensemble_stage(params["ensemble"][name], runs, tmp / "ensemble" / f"{name}.nc")
         fits_stage(params["fits"][name], tmp / "ensemble" / f"{name}.nc", runs,
                    tmp / "fits" / f"{name}.nc")  # fmt: skip
         fits.append(tmp / "fits" / f"{name}.nc")
@@ -59,11 +62,11 @@ def pipeline(tiny, tmp_path_factory):
         [tmp / "ensemble" / f"{n}.nc" for n in names], fits,
         tmp / names[0] / "batch_0000.nc", tmp / "figures",
     )  # fmt: skip
-    return tmp, paths, names
+    return tmp, paths, names, params, sec
 
 
 def test_ensemble_counts_every_replica(pipeline):
-    tmp, _, names = pipeline
+    tmp, _, names, _, _ = pipeline
     ens = read_dataset(tmp / "ensemble" / f"{names[0]}.nc")
     assert ens.attrs["n_replicas"] == 3
     assert (ens["lambda_onset_count"].values == 3).all()
@@ -71,7 +74,7 @@ def test_ensemble_counts_every_replica(pipeline):
 
 
 def test_summary_rows_have_the_design_columns(pipeline):
-    tmp, _, _ = pipeline
+    tmp, _, _, _, _ = pipeline
     table = pd.read_csv(tmp / "summary.csv")
     assert list(table.columns) == COLUMNS
     assert set(table["study"]) == {"drum"}
@@ -91,7 +94,7 @@ def test_summary_rows_have_the_design_columns(pipeline):
 
 
 def test_fits_file_holds_values_and_curves(pipeline):
-    tmp, _, names = pipeline
+    tmp, _, names, _, _ = pipeline
     fits = read_dataset(tmp / "fits" / f"{names[0]}.nc")
     assert fits["onset_time"].attrs["units"] == "s"
     # a refused onset says why, in the file
@@ -102,7 +105,7 @@ def test_fits_file_holds_values_and_curves(pipeline):
 
 
 def test_every_figure_in_png_and_pdf(pipeline):
-    tmp, paths, _ = pipeline
+    tmp, paths, _, _, _ = pipeline
     names = sorted(p.name for p in paths)
     figs = {**FIGURES, **COMPARISON_FIGURES}
     expected = sorted(f"fig{k}_{n}.{e}" for k, n in figs.items() for e in ("png", "pdf"))
@@ -137,3 +140,59 @@ def test_runs_path_fills_the_section_once_and_hands_it_down_frozen(tiny, tmp_pat
     assert len(fills) == 1  # the stage's load of --params, nothing below it
     assert len(seen) == 1 and isinstance(seen[0], layout.FrozenSection)
     assert read_dataset(tmp_path / "batch_0000.nc").sizes["replica"] == 1
+
+
+def test_a_point_folder_swapped_for_another_points_is_refused_naming_both(pipeline, tmp_path):
+    """Every run file of the settled point copied into the reference point's folder: the
+    files agree with each other, but not with the point the stages were asked for."""
+    tmp, _, names, params, _ = pipeline
+    ref, other = names[0], names[1]
+    swapped = tmp_path / ref
+    swapped.mkdir()
+    for b in (0, 1, 2):
+        (swapped / f"batch_{b:04d}.nc").write_bytes(
+            (tmp / other / f"batch_{b:04d}.nc").read_bytes()
+        )
+    runs = sorted(swapped.glob("batch_*.nc"))
+    both = rf"belongs to point '{re.escape(other)}', not to '{re.escape(ref)}'"
+    with pytest.raises(RunFileError, match=both):
+        ensemble_stage(params["ensemble"][ref], runs, tmp_path / "ensemble.nc")
+    with pytest.raises(RunFileError, match=both):
+        fits_stage(params["fits"][ref], tmp / "ensemble" / f"{ref}.nc", runs, tmp_path / "f.nc")
+    # the other point's ensemble under the reference point's name
+    with pytest.raises(RunFileError, match=both):
+        own = [tmp / ref / f"batch_{b:04d}.nc" for b in (0, 1, 2)]
+        fits_stage(params["fits"][ref], tmp / "ensemble" / f"{other}.nc", own, tmp_path / "f.nc")
+    # an init file of the other point
+    with pytest.raises(RunFileError, match=both):
+        runs_stage(params["sim"][ref], 0, tmp / other / "init_0.nc", tmp_path / "r.nc")
+    assert not list(tmp_path.glob("*.nc"))
+
+
+def test_restamp_reuses_files_whose_physics_a_point_has(pipeline, tmp_path):
+    """The documented way to reuse results under new point names: files are written to the
+    point's folder with its name and hash, data untouched, and the stages accept them;
+    a file whose physics no point of the config has is refused naming it."""
+    from granpipe.drum.stages import restamp_stage
+
+    tmp, _, names, params, sec = pipeline
+    ref = names[0]
+    old = [tmp / ref / "init_0.nc", tmp / ref / "batch_0000.nc"]
+    written = restamp_stage(sec, old, tmp_path)
+    assert written == [tmp_path / "init" / ref / "batch_0000.nc",
+                       tmp_path / "runs" / ref / "batch_0000.nc"]  # fmt: skip
+    for src, dest in zip(old, written, strict=True):
+        a, b = read_dataset(src), read_dataset(dest)
+        assert b.attrs["point"] == ref and b.attrs["config_hash"] == a.attrs["config_hash"]
+        assert str(src) in b.attrs["restamped_from"]
+        for name in a.data_vars:
+            assert np.array_equal(a[name].values, b[name].values, equal_nan=a[name].dtype.kind
+                                  == "f")  # fmt: skip
+    ensemble_stage(params["ensemble"][ref], written[1:], tmp_path / "e.nc")
+    with pytest.raises(RunFileError, match="which exists: remove it first"):
+        restamp_stage(sec, old[:1], tmp_path)
+    # only the reference start-up: the settled point's files have no point here
+    paper = {**sec, "protocol": {**sec["protocol"], "startup": "paper"}}
+    with pytest.raises(RunFileError, match=rf"{re.escape(names[1])}.*no point of this config"):
+        restamp_stage(paper, [tmp / names[1] / "batch_0000.nc"], tmp_path / "other")
+    assert not (tmp_path / "other").exists()

@@ -1,11 +1,12 @@
 """Product behaviour of the workflow on a scratch copy at the quick scale.
 
-One module-scoped run of the whole quick scale feeds every test here: partial reruns
-plan exactly the stages a config edit touches, figures regenerate from cached data
-alone, growing an ensemble reuses every batch, a SIGKILLed job leaves nothing under its
-final name and its rerun is byte-identical, a blow-up names study, point, replica, seed
-and step while ``--keep-going`` finishes the rest, a second workflow on the same
-directory is refused by Snakemake's lock, and ``--report`` gathers every figure.
+The quick scale runs once per session (``pristine_quick``); every test works on its own
+copy of it (``quick``), so they pass in any order: partial reruns plan exactly the
+stages a config edit touches, figures regenerate from cached data alone, growing an
+ensemble reuses every batch, a SIGKILLed job leaves nothing under its final name and its
+rerun is byte-identical, a blow-up names study, point, replica, seed and step while
+``--keep-going`` finishes the rest, a second workflow on the same directory is refused by
+Snakemake's lock, and ``--report`` gathers every figure.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import yaml
 
 from granpipe.status import expected_run_files
 
-from .conftest import SNAKEMAKE, copy_workflow, run_snakemake, snakemake_env
+from .conftest import SNAKEMAKE, run_snakemake, snakemake_env
 
 pytestmark = pytest.mark.workflow
 
@@ -133,19 +134,6 @@ def data_bytes(path: Path) -> dict[str, bytes]:
         names = [n for n in ds.data_vars if n not in COST_VARIABLES]
         assert names, f"{path} has no data variables"
         return {name: ds[name].values.tobytes() for name in names}
-
-
-@pytest.fixture(scope="module")
-def quick(tmp_path_factory):
-    """A scratch copy of the workflow with the quick scale run to completion."""
-    workdir = copy_workflow(tmp_path_factory.mktemp("product"))
-    base = yaml.safe_load((workdir / "config/quick.yaml").read_text())
-    base["studies"] = [s for s in base["studies"] if s in KNOBS]
-    if not base["studies"]:
-        pytest.skip("no study with product knobs has landed")
-    configfile = write_config(workdir, base, "scratch.yaml")
-    run_snakemake("--cores", "2", "--configfile", configfile, cwd=workdir, timeout=1500)
-    return workdir, base
 
 
 def studies(base):
@@ -268,8 +256,7 @@ def test_adding_a_drum_period_plans_only_its_point(quick):
     cfg["drum"]["physics"]["period_s"] = [period, period / 2]
     one = copy.deepcopy(base)
     one["studies"] = ["drum"]
-    # earlier tests may have left the scratch results ahead of the base config (a grown
-    # ensemble): what the second period adds is the difference of the two plans
+    # what the second period adds is the difference of the two plans
     before = planned_jobs(workdir, write_config(workdir, one, "one_period.yaml"))
     jobs = planned_jobs(workdir, write_config(workdir, cfg, "two_periods.yaml"))
     ens = base["drum"]["ensemble"]
@@ -360,11 +347,10 @@ def test_killed_forcerun_resumes_with_a_plain_rerun(quick):
     if "drum" not in studies(base):
         pytest.skip("the drum study is not part of this scale")
     root = workdir / "results" / "quick" / "drum"
-    # the run files of the config (a grown ensemble of an earlier test may have left more)
     runs = [root / f for f in expected_run_files("drum", base["drum"])]
     reference = {p: data_bytes(p) for p in runs}
-    # the run files as targets: the DAG holds only their jobs (an earlier test may have left
-    # other studies' jobs outdated, and every write here waits 30 s before its rename)
+    # the run files as targets: the DAG holds only their jobs (every write here waits 30 s
+    # before its rename)
     proc = subprocess.Popen(
         [SNAKEMAKE, "--cores", "1", "--configfile", "config/scratch.yaml",
          "--forcerun", "drum_runs", "--", *(str(p.relative_to(workdir)) for p in runs)],
@@ -441,7 +427,7 @@ def test_report_gathers_every_figure_and_summary(quick):
 def test_blow_up_names_replica_and_keep_going_finishes_the_rest(quick):
     """A timestep far past stability blows up every replica of one study: its jobs fail
     naming study, point, replica, seed and step; --keep-going still runs the other
-    studies' pending jobs (their figures, forced). Runs last: it changes the scratch state."""
+    studies' pending jobs (their figures, forced)."""
     workdir, base = quick
     names = studies(base)
     if len(names) < 2:

@@ -68,7 +68,7 @@ if "box" in config:
                 )
             ),
             previous=lambda w, input: (
-                f"--previous {input.previous}" if "previous" in input.keys() else ""
+                ["--previous", input.previous] if "previous" in input.keys() else []
             ),
         conda:
             "../envs/granpipe.yaml"
@@ -89,7 +89,7 @@ if "box" in config:
             "granpipe box runs --params {params.json:q} --N-l {wildcards.box_nl}"
             " --Gamma {wildcards.box_gamma} --init {wildcards.box_init}"
             " --replica {wildcards.box_rep} --part {wildcards.box_part}"
-            " --init-file {input.init:q} {params.previous} --out {output:q} > {log:q} 2>&1"
+            " --init-file {input.init:q} {params.previous:q} --out {output:q} > {log:q} 2>&1"
 
     rule box_ensemble:
         """Detection (s_c, s_b, detachment), T_g, slips and ψ6 of one point."""
@@ -107,7 +107,7 @@ if "box" in config:
         output:
             out("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init},{box_walls}.nc"),
         params:
-            json=lambda w: as_json(box_layout.ensemble_params(BOX)),
+            json=lambda w, output: as_json(box_layout.ensemble_params(BOX, Path(output[0]).stem)),
         conda:
             "../envs/granpipe.yaml"
         log:
@@ -125,7 +125,7 @@ if "box" in config:
         input:
             BOX_ENSEMBLE_FILES,
         output:
-            *[out("box", f) for f in box_layout.fit_files() if not f.endswith(".csv")],
+            *[out("box", f) for f in box_layout.fit_files() if f != "fits/summary.csv"],
             summary=report(
                 out("box", "fits", "summary.csv"),
                 category="box",
@@ -185,7 +185,7 @@ if "box" in config:
             json=lambda w: as_json(box_layout.figures_params(BOX)),
             fitsdir=lambda w: out("box", "fits"),
             outdir=lambda w: out("box", "figures"),
-            inits=lambda w, input: " ".join(f"--init-file {f}" for f in input.init),
+            inits=lambda w, input: [a for f in input.init for a in ("--init-file", f)],
         conda:
             "../envs/granpipe.yaml"
         log:
@@ -196,7 +196,7 @@ if "box" in config:
             mem_mb=2000,
         shell:
             "granpipe box figures --params {params.json:q} --fits-dir {params.fitsdir:q}"
-            " --out-dir {params.outdir:q} {params.inits} {input.ensemble:q} > {log:q} 2>&1"
+            " --out-dir {params.outdir:q} {params.inits:q} {input.ensemble:q} > {log:q} 2>&1"
 
     # run files are targets too: a plain rerun recomputes any that a killed job removed
     register_targets(

@@ -7,8 +7,6 @@
 # points, the grids add or drop points; confidence -> chaos map onwards; n_boot/units ->
 # fits and figures.
 
-import shlex
-
 from granpipe.column import layout as column_layout
 
 COLUMN = config.get("column", {})
@@ -221,9 +219,7 @@ rule column_figures:
     params:
         json=lambda w: as_json(COLUMN_PARAMS["figures"]),
         outdir=lambda w, output: str(Path(output.png[0]).parent),
-        traj=lambda w, input: " ".join(
-            f"--trajectories {shlex.quote(p)}" for p in input.trajectories
-        ),
+        traj=lambda w, input: [a for p in input.trajectories for a in ("--trajectories", p)],
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -233,7 +229,7 @@ rule column_figures:
         runtime=10,
         mem_mb=2000,
     shell:
-        "granpipe column figures --params {params.json:q} {params.traj}"
+        "granpipe column figures --params {params.json:q} {params.traj:q}"
         " --continuum {input.continuum:q} --relaxation {input.relaxation:q}"
         " --chaos {input.chaos:q} --convergence {input.convergence:q}"
         " --outdir {params.outdir:q} > {log:q} 2>&1"

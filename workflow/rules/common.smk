@@ -2,9 +2,24 @@
 # No science here: rules call the granpipe CLI with the config subset as --params.
 
 import json
+import os
+import sys
 from pathlib import Path
 
 from granpipe.seeds import batch_replicas
+
+# Jobs run the `granpipe` of the interpreter that runs Snakemake (its console script sits
+# beside it), whatever PATH the user's shell has: the folder comes first on the PATH the
+# jobs inherit, locally and through SLURM's --export=ALL.
+
+
+envvars:
+    "PATH",
+
+
+_BIN = str(Path(sys.executable).parent)
+if os.environ.get("PATH", "").split(os.pathsep)[0] != _BIN:
+    os.environ["PATH"] = os.pathsep.join([_BIN, os.environ.get("PATH", "")])
 
 STUDY_TARGETS = {}
 

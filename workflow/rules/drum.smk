@@ -83,7 +83,7 @@ rule drum_ensemble:
     output:
         out("drum", "ensemble", f"{DRUM_POINT}.nc"),
     params:
-        json=lambda w: as_json(DRUM_PARAMS["ensemble"]),
+        json=lambda w: as_json(DRUM_PARAMS["ensemble"][drum_layout.point_of(w)]),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -189,8 +189,9 @@ rule drum_figures:
         pdf=[out("drum", f) for f in drum_layout.figure_files(("pdf",))],
     params:
         json=lambda w: as_json(DRUM_PARAMS["figures"]),
-        ensembles=lambda w, input: " ".join(f"--ensemble '{e}'" for e in input.ensembles),
-        fits=lambda w, input: " ".join(f"--fits '{f}'" for f in input.fits),
+        # option lists, each path quoted by Snakemake ({params.ensembles:q})
+        ensembles=lambda w, input: [a for e in input.ensembles for a in ("--ensemble", e)],
+        fits=lambda w, input: [a for f in input.fits for a in ("--fits", f)],
         outdir=lambda w, output: str(Path(output.fig2).parent),
     conda:
         "../envs/granpipe.yaml"
@@ -201,8 +202,8 @@ rule drum_figures:
         runtime=10,
         mem_mb=2000,
     shell:
-        "granpipe drum figures --params {params.json:q} {params.ensembles}"
-        " {params.fits} --snapshot {input.snapshot:q} --outdir {params.outdir:q}"
+        "granpipe drum figures --params {params.json:q} {params.ensembles:q}"
+        " {params.fits:q} --snapshot {input.snapshot:q} --outdir {params.outdir:q}"
         " > {log:q} 2>&1"
 
 

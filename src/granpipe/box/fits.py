@@ -54,6 +54,7 @@ from .layout import Walls
 
 __all__ = [
     "points_table",
+    "cost_rows",
     "thresholds_table",
     "temperature_fits",
     "slip_fits",
@@ -314,6 +315,14 @@ CRITERIA = {
 }
 
 
+THRESHOLD_COLUMNS = (
+    "init", "N_l", "mu_w", "side_walls", "wall_torque", "criterion", "measure", "level",
+    "Gamma", "K_m", "Gamma_low", "Gamma_high", "status", "n_crossings", "n_points",
+)  # fmt: skip
+"""Columns of :func:`thresholds_table` (also when no group has a point the fits use, e.g.
+a grid of crystal starts none of which stayed intact)."""
+
+
 def thresholds_table(table: pd.DataFrame, detection: Mapping) -> pd.DataFrame:
     """Thresholds in Γ per (init, N_l, criterion), with the bracketing grid points."""
     rows = []
@@ -342,7 +351,7 @@ def thresholds_table(table: pd.DataFrame, detection: Mapping) -> pd.DataFrame:
                     "n_points": len(g),
                 }
             )
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows, columns=list(THRESHOLD_COLUMNS))
 
 
 def temperature_fits(table: pd.DataFrame, fits_cfg: Mapping) -> dict:
@@ -502,6 +511,15 @@ def summary_rows(
         for region, af in fits.items():
             paper = _paper(PAPER.get(f"E_b_{init}_{region}"), walls)
             rows.append(af.summary_row("box", _fmt_q(f"E_b_{region}", init, n_l, walls), paper))
+    return rows
+
+
+def cost_rows(table: pd.DataFrame) -> list[dict]:
+    """Rows of ``fits/costs.csv`` (the columns of ``summary.csv``): the wall-clock cost per
+    particle-step of each (N_l, init, walls). Wall-clock time differs between two runs of
+    the same config, so it stays out of ``summary.csv``, which two such runs give byte for
+    byte."""
+    rows = []
     for init, n_l, walls, g in _groups(table, used_only=False):
         cost = float(1e9 * g["wall_seconds"].sum() / max((g["steps"] * g["N"]).sum(), 1))
         rows.append(

@@ -64,6 +64,7 @@ __all__ = [
     "POINT_RE",
     "init_params",
     "runs_params",
+    "previous_part_params",
     "ensemble_params",
     "fits_params",
     "figures_params",
@@ -87,15 +88,16 @@ _WALLS_RE = re.compile(
     rf"mu_w=({_NUM}),walls=({'|'.join(SIDE_WALLS)}),torque=({'|'.join(WALL_TORQUES)})"
 )
 
-MAX_SIMULATION_JOBS = 10_000
-"""The most init + runs jobs a box config may ask for: Snakemake plans ~6 ms per job, so
-10,000 take about a minute (the paper scale asks for 1,010; see the drum's limit)."""
+BYTES_PER_DISK = 4096
+"""A generous bound on a run's memory per disk (engine state and lists,
+``granpipe.engine.layout``), besides the 16 bytes per disk and recorded period."""
 
 
 def check(section: Mapping) -> None:
     """Cross-key checks of a ``box`` section before any job runs (ConfigError names the
-    key): ``fits.N_l`` one of ``grid.N_l``, a transient at least as long as the ramp, and a
-    plan Snakemake can build."""
+    key): ``fits.N_l`` one of ``grid.N_l``, a transient at least as long as the ramp, a
+    plan Snakemake can build (parts numbered in three digits), a box wide enough for a
+    crystal row, and runs that fit in this machine's memory."""
     from ..errors import ConfigError
 
     grid = section.get("grid", {})
@@ -110,14 +112,27 @@ def check(section: Mapping) -> None:
             f"config keys 'box.protocol.ramp_periods' = {ramp} and 'transient_periods' = "
             f"{transient}: the ramp must end before the measurement starts"
         )
+    from ..config import check_memory, check_plan
+    from .preparation import crystal_row_lengths
+
     jobs = len(points(section)) * len(replicas(section)) * (n_parts(section) + 1)
-    if jobs > MAX_SIMULATION_JOBS:
+    check_plan("box.grid", jobs, "raise 'box.protocol.periods_per_part' or shrink the grid")
+    if n_parts(section) > 1000:  # the rules' three-digit part pattern
         raise ConfigError(
-            f"config key 'box.grid': {jobs} simulation jobs, more than {MAX_SIMULATION_JOBS} "
-            "(Snakemake would take over a minute to plan them): raise "
-            "'box.protocol.periods_per_part'"
-            " or shrink the grid"
+            f"config keys 'box.protocol.measured_periods' and 'periods_per_part': "
+            f"{n_parts(section)} parts per run, more than 1000"
         )
+    lx = float(section["physics"]["Lx"])
+    rows = section.get("init", {}).get("crystal_rows", "spanning")
+    if "crystal" in section["grid"].get("inits", INITS) and min(crystal_row_lengths(lx, rows)) < 1:
+        raise ConfigError(
+            f"config key 'box.physics.Lx' = {lx} holds no crystal row ('box.init.crystal_rows'"
+            f" = {rows}: rows of floor(Lx) and floor(Lx) - 1 disks): at least 2 for a crystal"
+        )
+    frames = int(pr.get("periods_per_part", 200)) + 1
+    check_memory(
+        "box.grid.N_l", max(n_ls), n_disks(section, max(n_ls)) * (BYTES_PER_DISK + 16 * frames)
+    )
 
 
 def gamma_text(gamma: float) -> str:
@@ -323,8 +338,12 @@ def ensemble_files(section: Mapping) -> list[str]:
     return [ensemble_file(*pt) for pt in points(section)]
 
 
-FITS = ("fits/phase_diagram.nc", "fits/temperature.nc", "fits/slips.nc", "fits/summary.csv")
-"""Outputs of the fits stage."""
+FITS = (
+    "fits/phase_diagram.nc", "fits/temperature.nc", "fits/slips.nc", "fits/summary.csv",
+    "fits/costs.csv",
+)  # fmt: skip
+"""Outputs of the fits stage (``costs.csv``: the wall-clock costs, apart from the fitted
+numbers of ``summary.csv``)."""
 
 FIGURES = {
     1: "fig1_snapshots",
@@ -371,27 +390,71 @@ def runs_params(section: Mapping, part: int, walls: Walls) -> dict:
     }
 
 
-def ensemble_params(section: Mapping) -> dict:
-    """Config subset of the ensemble stage: detection, slips, order and the box width."""
-    return {
+def previous_part_params(params: Mapping) -> dict:
+    """The config subset of the part before the one whose subset is ``params``
+    (:func:`runs_params`): every part but the last is ``periods_per_part`` long."""
+    p0 = int(params["part_periods"][0])
+    return {**params, "part_periods": [p0 - int(params["protocol"]["periods_per_part"]), p0]}
+
+
+def ensemble_params(section: Mapping, point: str | None = None) -> dict:
+    """Config subset of the ensemble stage: detection, slips, order and the box width; for
+    one ``point`` (its name) also which files it reduces: the point, its replica count and
+    the config hash of each part's run files."""
+    from ..io import config_hash
+
+    out = {
         "Lx": float(section["physics"]["Lx"]),
         "detection": dict(section["detection"]),
         "slips": dict(section["slips"]),
         "order": dict(section["order"]),
     }
+    if point is not None:
+        walls = parse_point(point)[3]
+        out.update(
+            point=point,
+            replicas=int(section["grid"]["replicas"]),
+            runs_config_hashes=[
+                config_hash(runs_params(section, part, walls)) for part in range(n_parts(section))
+            ],
+        )
+    return out
+
+
+def _inputs(section: Mapping) -> dict:
+    """The config hashes of the files the fits and figures read: ``points`` (point name ->
+    its ensemble file's) and ``states`` (initial state name -> its init files')."""
+    from ..io import config_hash
+
+    return {
+        "points": {
+            point_name(*pt): config_hash(ensemble_params(section, point_name(*pt)))
+            for pt in points(section)
+        },
+        "states": {
+            state_name(*st): config_hash(init_params(section, st[2])) for st in init_states(section)
+        },
+    }
 
 
 def fits_params(section: Mapping) -> dict:
-    """Config subset of the fits stage (criteria and fit settings)."""
-    return {"detection": dict(section["detection"]), "fits": dict(section["fits"])}
+    """Config subset of the fits stage (criteria and fit settings) and the config hash
+    of each point's ensemble file."""
+    return {
+        "detection": dict(section["detection"]),
+        "fits": dict(section["fits"]),
+        "points": _inputs(section)["points"],
+    }
 
 
 def figures_params(section: Mapping) -> dict:
-    """Config subset of the figures stage."""
+    """Config subset of the figures stage, with the config hashes of the ensemble and
+    init files it reads."""
     return {
         "Lx": float(section["physics"]["Lx"]),
         "order": dict(section["order"]),
         "fits": dict(section["fits"]),
+        **_inputs(section),
     }
 
 

@@ -27,7 +27,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import SimulationError
-from ..io import RunFileError, config_hash, expect_attrs, read_dataset, write_dataset
+from ..io import RunFileError, config_hash, expect_input, read_dataset, write_dataset
 from ..seeds import replica_rng, replica_seed
 from . import layout, model, preparation, protocol
 from .layout import ensemble_params, figures_params, fits_params, runs_params
@@ -92,7 +92,9 @@ def init_stage(
     out: str | Path,
     log: Callable[[str], None] | None = log_to_stderr,
 ) -> Path:
-    """Prepare and write one initial state (``params`` = ``{physics, init}``)."""
+    """Prepare and write one initial state (``params`` = ``{physics, init}``; the side
+    walls' drive, which the plate at rest does not feel, is not part of it)."""
+    params = {**params, "physics": layout.preparation_physics(params["physics"])}
     physics, init_cfg = params["physics"], params["init"]
     n = n_disks(physics, n_l)
     sp = seed_physics(params, n_l, kind)
@@ -193,14 +195,16 @@ def runs_stage(
     periods = range(p0, p1)
     walls = walls_of(physics)
     point = layout.point_name(n_l, gamma, kind, walls)
+    if part > 0 and previous is None:
+        raise RunFileError(f"part {part} needs --previous (the run file of part {part - 1})")
     init_ds = read_dataset(init_file)
     # the prepared state of this point's (N_l, init, walls, replica), from this physics
-    expect_attrs(
+    expect_input(
         init_ds, init_file, study="box", stage="init",
-        state=layout.state_name(n_l, kind, walls), replica=int(replica),
         config_hash=config_hash(
             {"physics": layout.preparation_physics(physics), "init": params["init"]}
         ),
+        state=layout.state_name(n_l, kind, walls), replica=int(replica),
     )  # fmt: skip
     seed = int(init_ds.attrs["seed"])
     label = f"runs {point} replica {replica} part {part}"
@@ -212,12 +216,11 @@ def runs_stage(
             start_spins=init_ds["spins"].values,
         )
     else:
-        if previous is None:
-            raise ValueError(f"part {part} needs --previous (the run file of part {part - 1})")
         prev = read_dataset(previous)
-        expect_attrs(
-            prev, previous, study="box", stage="runs", point=point, replica=int(replica),
-            part=part - 1, seed=seed,
+        expect_input(
+            prev, previous, study="box", stage="runs", point=point,
+            config_hash=config_hash(layout.previous_part_params(params)),
+            replica=int(replica), part=part - 1, seed=seed,
         )  # fmt: skip
         kwargs.update(previous_state=_engine_arrays(prev), tracers=prev["tracer_index"].values)
     n = int(init_ds.sizes["particle"])
@@ -320,33 +323,39 @@ def runs_stage(
     return write_dataset(ds, out, config_subset=params, seeds=[seed])
 
 
-def read_point_runs(files: Sequence[str | Path]) -> dict[int, list[xr.Dataset]]:
+def read_point_runs(files: Sequence[str | Path], params: Mapping) -> dict[int, list[xr.Dataset]]:
     """Run files of one point grouped by replica, each list in part order.
 
-    Raises RunFileError (naming the file) unless every file is a box run file of the same
-    point as the first, each (replica, part) appears once and every replica has the same
-    parts 0, 1, ..., P - 1.
+    ``params`` is the ensemble stage's config subset for one point
+    (:func:`granpipe.box.layout.ensemble_params`): every file must be a box run file of
+    ``params["point"]`` whose config hash is that of its part
+    (``params["runs_config_hashes"][part]``), and the files must hold each replica
+    ``0 .. params["replicas"] - 1`` and part once. Raises RunFileError naming the file.
     """
+    point, hashes = params["point"], params["runs_config_hashes"]
     by_rep: dict[int, list[xr.Dataset]] = {}
     where: dict[tuple[int, int], str] = {}
-    point = None
     for f in files:
         ds = read_dataset(f)
-        expect_attrs(ds, f, study="box", stage="runs")
-        point = point or ds.attrs.get("point")
-        expect_attrs(ds, f, point=point)
-        key = (int(ds.attrs["replica"]), int(ds.attrs["part"]))
+        expect_input(ds, f, study="box", stage="runs", point=point)
+        part = int(ds.attrs["part"])
+        if not 0 <= part < len(hashes):
+            raise RunFileError(f"{f} holds part {part}; {point} has parts 0..{len(hashes) - 1}")
+        expect_input(ds, f, study="box", stage="runs", point=point, config_hash=hashes[part])
+        key = (int(ds.attrs["replica"]), part)
         if key in where:
             raise RunFileError(f"replica {key[0]} part {key[1]} appears twice: {where[key]}, {f}")
         where[key] = str(f)
         ds = ds.drop_vars([v for v in ds.data_vars if v.startswith("engine_")])
         by_rep.setdefault(key[0], []).append(ds)
-    n_parts = max((len(p) for p in by_rep.values()), default=0)
-    for rep, parts in by_rep.items():
+    want = {(r, p) for r in range(int(params["replicas"])) for p in range(len(hashes))}
+    missing = sorted(want - set(where))
+    if missing or set(where) - want:
+        raise RunFileError(
+            f"{point}: the run files hold (replica, part) {sorted(where)}, expected {sorted(want)}"
+        )
+    for parts in by_rep.values():
         parts.sort(key=lambda d: int(d.attrs["part"]))
-        got = [int(d.attrs["part"]) for d in parts]
-        if got != list(range(n_parts)):
-            raise RunFileError(f"{point} replica {rep}: parts {got}, expected 0..{n_parts - 1}")
     return by_rep
 
 
@@ -360,7 +369,7 @@ def ensemble_stage(
     """Measures of one point from all its run files (every replica, every part)."""
     from . import measures
 
-    by_rep = read_point_runs(run_files)
+    by_rep = read_point_runs(run_files, params)
     runs = {r: measures.concat_parts(parts) for r, parts in by_rep.items()}
     ds = measures.point_dataset(
         runs, params["detection"], params["slips"], params["order"], float(params["Lx"])
@@ -409,6 +418,34 @@ def select_walls(df, walls: layout.Walls):
     ]
 
 
+def _check_inputs(files: Sequence[str | Path], expected: Mapping[str, str], stage: str,
+                  key: str, every: bool) -> None:  # fmt: skip
+    """Check that each file is a box ``stage`` file of one of the ``expected`` names (its
+    attribute ``key``: ``point`` or ``state``) with that name's config hash; with
+    ``every``, each name exactly once. RunFileError names the file (and the other file
+    of a duplicate, or the names missing)."""
+    from ..io import open_input
+
+    seen: dict[str, str] = {}
+    for f in files:
+        with open_input(f) as ds:
+            attrs = dict(ds.attrs)
+        expect_input(attrs, f, study="box", stage=stage)
+        name = str(attrs.get(key))
+        if name not in expected:
+            raise RunFileError(
+                f"{f} holds {key} {name!r}, which this stage was not asked for "
+                f"(expected one of: {', '.join(expected)})"
+            )
+        expect_input(attrs, f, study="box", stage=stage, config_hash=expected[name])
+        if every and name in seen:
+            raise RunFileError(f"{key} {name} appears twice: in {seen[name]} and in {f}")
+        seen[name] = str(f)
+    missing = [n for n in expected if n not in seen]
+    if every and missing:
+        raise RunFileError(f"no {stage} file of {key}(s) {', '.join(missing)}")
+
+
 def fits_stage(
     params: Mapping,
     ensemble_files: Sequence[str | Path],
@@ -422,6 +459,7 @@ def fits_stage(
     from . import fits
 
     out_dir = Path(out_dir)
+    _check_inputs(ensemble_files, params["points"], "ensemble", "point", every=True)
     table = fits.points_table(ensemble_files)
     ths = fits.thresholds_table(table, params["detection"])
     with warnings.catch_warnings():
@@ -431,9 +469,14 @@ def fits_stage(
     datasets = fits.fits_datasets(table, ths, tfits, sfits)
     written = []
     for name, ds in datasets.items():
-        written.append(write_dataset(ds, out_dir / f"{name}.nc", config_subset=params, study="box"))
+        written.append(
+            write_dataset(
+                ds, out_dir / f"{name}.nc", config_subset=params, study="box", stage="fits"
+            )
+        )
     rows = fits.summary_rows(table, ths, tfits, sfits)
     written.append(write_summary(rows, out_dir / "summary.csv", merge=False))
+    written.append(write_summary(fits.cost_rows(table), out_dir / "costs.csv", merge=False))
     if log:
         for r in rows:
             log(
@@ -488,6 +531,8 @@ def figures_stage(
     from .fits import PAPER
 
     out_dir = Path(out_dir)
+    _check_inputs(ensemble_files, params["points"], "ensemble", "point", every=True)
+    _check_inputs(init_files, params["states"], "init", "state", every=False)
     points, ths, temp, slips = load_fits(fits_dir)
     all_ths = ths
     walls = figure_walls(points)

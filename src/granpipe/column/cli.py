@@ -21,7 +21,32 @@ from __future__ import annotations
 
 import click
 
-from ..cli import params_option
+from ..cli import INDEX, POSITIVE, params_option
+from ..config import validate_params
+
+_PHYSICS = "/$defs/physics"
+_RELAX, _CHAOS = "/properties/relaxation/properties/", "/properties/chaos/properties/"
+_CONT, _FIG1 = "/properties/continuum/properties/", "/properties/figure1/properties/"
+_STEP = {"step_factor": "/properties/integrator/properties/step_factor"}
+_STRING = {"type": "string"}
+_HASHES = {"type": "object", "additionalProperties": True}
+
+
+def _checked(params: dict, refs: dict, extra: dict | None = None) -> dict:
+    """``--params`` of a stage, checked against the column schema (every key of ``refs``
+    and ``extra`` required)."""
+    return validate_params(params, "column", refs, extra)
+
+
+def _continuum_refs(convergence: bool) -> dict:
+    keys = ("sigma_width", "bsr_kernel_width")
+    if not convergence:
+        keys += ("n_taps", "lw_refinement", "bsr_refinement", "bsr_derived_refinement", "record_dt")
+    refs = {"physics": _PHYSICS, **_STEP, **{k: _CONT + k for k in keys}}
+    if convergence:
+        refs["convergence"] = _CONT + "convergence"
+    return refs
+
 
 cli = click.Group(
     "column", help="Tapped column of particles (docs/column.md): stages of the study."
@@ -36,30 +61,38 @@ def trajectories_cmd(params, set_name, out):
     """Fig. 1: y_i(t) of one column over the configured taps from the equilibrium start."""
     from .stages import trajectories_stage
 
-    trajectories_stage(params, set_name, out)
+    refs = {"sets": _FIG1 + "sets", "n_taps": _FIG1 + "n_taps", "record_dt": _FIG1 + "record_dt"}
+    trajectories_stage(_checked(params, {**refs, **_STEP}), set_name, out)
 
 
 @cli.command("relaxation")
 @params_option
-@click.option("--batch", required=True, type=int, help="Batch index (fixed replica range).")
+@click.option("--batch", required=True, type=INDEX, help="Batch index (fixed replica range).")
 @click.option("--out", required=True, type=click.Path(dir_okay=False))
 def relaxation_cmd(params, batch, out):
     """Density relaxation: one batch of perturbed starts over many taps."""
     from .stages import relaxation_stage
 
-    relaxation_stage(params, batch, out)
+    keys = ("n_taps", "batch_size", "perturbation")
+    relaxation_stage(
+        _checked(params, {"physics": _PHYSICS, **_STEP, **{k: _RELAX + k for k in keys}}),
+        batch, out,
+    )  # fmt: skip
 
 
 @cli.command("chaos")
 @params_option
-@click.option("--a", "amplitude", required=True, type=float, help="Tap amplitude a.")
-@click.option("--T", "period", required=True, type=float, help="Tap period T.")
+@click.option("--a", "amplitude", required=True, type=click.FloatRange(0), help="Tap amplitude a.")
+@click.option("--T", "period", required=True, type=POSITIVE, help="Tap period T.")
 @click.option("--out", required=True, type=click.Path(dir_okay=False))
 def chaos_cmd(params, amplitude, period, out):
     """One point of the chaos map: largest Lyapunov exponents and return-map periods."""
     from .stages import chaos_stage
 
-    chaos_stage(params, amplitude, period, out)
+    keys = ("n_replicas", "transient_taps", "taps", "perturbation", "twin_epsilon", "plain",
+            "return_max_period", "return_taps", "return_tolerance")  # fmt: skip
+    refs = {"physics": _PHYSICS, **_STEP, **{k: _CHAOS + k for k in keys}}
+    chaos_stage(_checked(params, refs), amplitude, period, out)
 
 
 @cli.command("continuum")
@@ -69,7 +102,7 @@ def continuum_cmd(params, out):
     """Fig. 2 data: discrete column, L-W and BSR solutions and their distances."""
     from .stages import continuum_stage
 
-    continuum_stage(params, out)
+    continuum_stage(_checked(params, _continuum_refs(False)), out)
 
 
 @cli.command("convergence")
@@ -79,7 +112,7 @@ def convergence_cmd(params, out):
     """Both continuum solvers under grid refinement on the Fig. 2 problem."""
     from .stages import convergence_stage
 
-    convergence_stage(params, out)
+    convergence_stage(_checked(params, _continuum_refs(True)), out)
 
 
 @cli.command("ensemble")
@@ -91,6 +124,11 @@ def ensemble_cmd(params, kind, out, inputs):
     """Reduce run files: relaxation batches → per-tap statistics; chaos points → the map."""
     from .stages import ensemble_stage
 
+    if kind == "relaxation":
+        extra = {"kind": {"const": "relaxation"}, "runs_config_hash": _STRING}
+        params = _checked(params, {}, extra)
+    else:
+        params = _checked(params, {"confidence": _CHAOS + "confidence"}, {"points": _HASHES})
     ensemble_stage(params, kind, out, inputs)
 
 
@@ -107,6 +145,8 @@ def fits_cmd(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_
     """Relaxation fit, chaos thresholds, continuum distances: summary.csv rows and a note."""
     from .stages import fits_stage
 
+    refs = {"n_boot": _RELAX + "n_boot", "units": "/properties/units"}
+    params = _checked(params, refs, {"inputs": _HASHES})
     fits_stage(params, relax_path, chaos_path, cont_path, conv_path, out_csv, out_nc, out_note)
 
 
@@ -122,4 +162,5 @@ def figures_cmd(params, traj, cont_path, relax_path, chaos_path, conv_path, outd
     """Figures 1–6 as PNG and PDF: fig<k>_<name>.{png,pdf}."""
     from .stages import figures_stage
 
+    params = _checked(params, {"units": "/properties/units"}, {"inputs": _HASHES})
     figures_stage(params, traj, cont_path, relax_path, chaos_path, conv_path, outdir)

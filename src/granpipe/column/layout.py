@@ -20,8 +20,10 @@ __all__ = [
     "relaxation_params",
     "chaos_points",
     "chaos_params",
+    "chaos_point_params",
     "continuum_params",
     "ensemble_params",
+    "input_hashes",
     "fits_params",
     "figures_params",
     "rule_params",
@@ -39,12 +41,13 @@ FIGURES = (
 
 def check(cfg: Mapping) -> None:
     """Cross-key checks of a ``column`` section before any job runs (ConfigError names
-    the key): each refinement of the convergence study must be a multiple of the one
-    before, so that the coarse nodes lie on every finer grid, and the return-map window of
-    the chaos points must fit in the measured taps and hold every phase of the longest
-    period twice."""
+    the key): every column physical (:func:`_check_columns`), each refinement of the
+    convergence study a multiple of the one before, so that the coarse nodes lie on every
+    finer grid, and the return-map window of the chaos points inside the measured taps,
+    holding every phase of the longest period twice."""
     from ..errors import ConfigError
 
+    _check_columns(cfg)
     chaos = cfg.get("chaos", {})
     p_max = int(chaos.get("return_max_period", 6))
     window = int(chaos.get("return_taps", 12))
@@ -71,6 +74,60 @@ def check(cfg: Mapping) -> None:
                     f"config key 'column.continuum.convergence.{key}' = {ks}: each entry must "
                     "be a multiple of the one before (nested grids)"
                 )
+
+
+MIN_RELAXATION_N = 20
+"""The fewest particles of the relaxation column: the generic set of docs/column.md
+("N ≥ 20"); a shorter column has no bulk whose density relaxes."""
+
+BYTES_PER_PARTICLE = 1024
+"""A generous bound on a column job's memory per particle (state, RK4 stages, tangent
+vectors, return-map states), besides 16 bytes per particle and recorded sample."""
+
+
+def _check_columns(cfg: Mapping) -> None:
+    """Every physics block makes a column (:class:`granpipe.column.model.ColumnParams`:
+    a period longer than the tap, Eq. 2; an equilibrium stack, Eq. 28: K > N m g / r,
+    i.e. ``stiffness_factor`` > 1), the chaos grid's periods too; the relaxation column
+    has at least :data:`MIN_RELAXATION_N` particles; the plan and each job's memory fit
+    (ConfigError names the key and the constraint)."""
+    from ..config import check_memory, check_plan
+    from ..errors import ConfigError
+    from .model import equilibrium_positions, physics
+
+    def column(key, phys, samples=0):
+        check_memory(f"{key}.N", phys["N"], int(phys["N"]) * (BYTES_PER_PARTICLE + 16 * samples))
+        try:
+            equilibrium_positions(physics(phys))
+        except ConfigError as exc:
+            raise ConfigError(f"config key '{key}': {exc}") from None
+
+    fig1 = cfg["figure1"]
+    for name, phys in fig1["sets"].items():
+        samples = int(fig1.get("n_taps", 4) * phys["T"] / fig1.get("record_dt", 0.001)) + 1
+        column(f"column.figure1.sets.{name}", phys, samples)
+    relax = cfg["relaxation"]["physics"]
+    column("column.relaxation.physics", relax)
+    if int(relax["N"]) < MIN_RELAXATION_N:
+        raise ConfigError(
+            f"config key 'column.relaxation.physics.N' = {relax['N']}: the relaxation column "
+            f"needs N >= {MIN_RELAXATION_N} (the generic set, docs/column.md)"
+        )
+    chaos = cfg["chaos"]
+    for a in chaos["amplitudes"]:
+        for t in chaos["periods"]:
+            column("column.chaos.periods", {**chaos["physics"], "a": a, "T": t})
+    cont = cfg["continuum"]
+    conv = cont.get("convergence", {})
+    finest = max([int(cont.get(k, 16)) for k in ("lw_refinement", "bsr_refinement")]
+                 + [int(k) for k in conv.get("lw_refinements", [64])])  # fmt: skip
+    samples = int(cont.get("n_taps", 4) * cont["physics"]["T"] / cont.get("record_dt", 0.01)) + 1
+    column("column.continuum.physics", cont["physics"], samples * finest)
+    jobs = len(cfg["figure1"]["sets"]) + len(relaxation_batches(cfg)) + len(chaos_points(cfg))
+    check_plan(
+        "column.relaxation.n_replicas", jobs + 2,
+        "raise 'column.relaxation.batch_size' or shrink the chaos grid",
+    )  # fmt: skip
 
 
 def step_factor(cfg: Mapping) -> float:
@@ -178,23 +235,64 @@ def continuum_params(cfg: Mapping, with_convergence: bool = False) -> dict:
     return p
 
 
+def chaos_point_params(cfg: Mapping, point: str) -> dict:
+    """The config subset a chaos point's file records: :func:`chaos_params` with the
+    point's a and T in its physics, as the rule passes them (the values of its name)."""
+    a, t = (float(v.split("=")[1]) for v in point.split(","))
+    p = chaos_params(cfg)
+    return {**p, "physics": {**p["physics"], "a": a, "T": t}}
+
+
 def ensemble_params(cfg: Mapping, kind: str) -> dict:
-    """Config subset of an ensemble rule: none for the relaxation batches (the kind only),
-    the interval's confidence for the chaos map."""
+    """Config subset of an ensemble rule, with the config hashes of the files it reduces
+    (each stage checks its inputs against them): the relaxation batches' for the
+    relaxation (``runs_config_hash``), each point's and the interval's confidence for the
+    chaos map (``points``: name -> hash)."""
+    from ..io import config_hash
+
     if kind == "relaxation":
-        return {"kind": "relaxation"}
+        return {"kind": "relaxation", "runs_config_hash": config_hash(relaxation_params(cfg))}
     if kind == "chaos":
-        return {"confidence": cfg["chaos"].get("confidence", 0.95)}
+        return {
+            "confidence": cfg["chaos"].get("confidence", 0.95),
+            "points": {pt: config_hash(chaos_point_params(cfg, pt)) for pt in chaos_points(cfg)},
+        }
     raise ValueError(f"kind must be 'relaxation' or 'chaos', got {kind!r}")
 
 
+def input_hashes(cfg: Mapping, trajectories: bool = False) -> dict:
+    """The config hashes of the files the fits (and, with ``trajectories``, the figures)
+    read: the two ensembles, the continuum comparison and convergence runs, and each
+    figure-1 column's trajectories (by name)."""
+    from ..io import config_hash
+
+    out = {
+        "relaxation": config_hash(ensemble_params(cfg, "relaxation")),
+        "chaos": config_hash(ensemble_params(cfg, "chaos")),
+        "continuum": config_hash(continuum_params(cfg)),
+        "convergence": config_hash(continuum_params(cfg, True)),
+    }
+    if trajectories:
+        out["trajectories"] = {
+            name: config_hash(trajectory_params(cfg, name)) for name in figure_sets(cfg)
+        }
+    return out
+
+
 def fits_params(cfg: Mapping) -> dict:
-    return {"n_boot": cfg["relaxation"].get("n_boot", 1000), "units": units(cfg)}
+    """Config subset of the fits rule: the bootstrap, the unit names and the config hashes
+    of its inputs (:func:`input_hashes`)."""
+    return {
+        "n_boot": cfg["relaxation"].get("n_boot", 1000),
+        "units": units(cfg),
+        "inputs": input_hashes(cfg),
+    }
 
 
 def figures_params(cfg: Mapping) -> dict:
-    """Config subset of the figures rule: the unit names only."""
-    return {"units": units(cfg)}
+    """Config subset of the figures rule: the unit names and the config hashes of its
+    inputs."""
+    return {"units": units(cfg), "inputs": input_hashes(cfg, trajectories=True)}
 
 
 def rule_params(cfg: Mapping) -> dict[str, dict]:

@@ -36,72 +36,76 @@ def _write(ds, out, params, seeds=None, **attrs):
     _log(f"wrote {out}")
 
 
-def _inputs(paths, stage, kind):
-    """Read column files and check that each is a ``stage`` file of ``kind``.
+def _inputs(paths, stage, kind, hashes):
+    """Read column files and check that each is a ``stage`` file of ``kind`` computed from
+    the config subset whose hash the stage was asked for: ``hashes`` is one hash for
+    every file, or a mapping from the file's name attribute (``set``, or the chaos point
+    ``a=..,T=..``) to its hash.
 
-    Raises RunFileError naming the file: unreadable, from another study, stage or kind.
+    Raises RunFileError naming the file: unreadable, from another study, stage, kind or
+    configuration.
     """
-    from ..io import expect_attrs, read_dataset
+    from ..io import RunFileError, expect_input, read_dataset
 
     out = []
     for p in paths:
         ds = read_dataset(p)
-        expect_attrs(ds, p, study="column", stage=stage, kind=kind)
+        expect_input(ds, p, study="column", stage=stage, kind=kind)
+        if isinstance(hashes, str):
+            want = hashes
+        else:
+            name = _name(ds)
+            if name not in hashes:
+                raise RunFileError(
+                    f"{p} holds the {kind} {name!r}, which this stage was not asked for "
+                    f"(expected one of: {', '.join(hashes)})"
+                )
+            want = hashes[name]
+        expect_input(ds, p, study="column", stage=stage, kind=kind, config_hash=want)
         out.append(ds)
     return out
 
 
-def _same_physics(datasets, paths, ignore=()):
-    """Refuse (naming the file) datasets whose config physics differ beyond ``ignore``."""
-    from ..io import RunFileError, config_from_attrs
-
-    ref = None
-    for ds, p in zip(datasets, paths, strict=True):
-        phys = dict(config_from_attrs(ds).get("physics", {}))
-        for k in ignore:
-            phys.pop(k, None)
-        if ref is None:
-            ref = (phys, p)
-        elif phys != ref[0]:
-            raise RunFileError(
-                f"{p} was computed for another column than {ref[1]}: physics {phys} "
-                f"against {ref[0]}"
-            )
+def _name(ds):
+    """A trajectories file's set, or a chaos point's name ``a=<a>,T=<T>``."""
+    if ds.attrs.get("kind") == "chaos":
+        return f"a={float(ds.attrs['a']):g},T={float(ds.attrs['T']):g}"
+    return str(ds.attrs.get("set"))
 
 
-def _reduced_inputs(relax_path, chaos_path, cont_path, conv_path):
-    """The fits' and figures' inputs, each checked to be the file its option names, the
-    continuum and convergence runs of one column (RunFileError names the file)."""
-    (ens,) = _inputs([relax_path], "ensemble", "relaxation")
-    (cmap,) = _inputs([chaos_path], "ensemble", "chaos")
-    (comp,) = _inputs([cont_path], "runs", "continuum")
-    (conv,) = _inputs([conv_path], "runs", "convergence")
-    _same_physics([comp, conv], [cont_path, conv_path])
+def _reduced_inputs(params, relax_path, chaos_path, cont_path, conv_path):
+    """The fits' and figures' inputs, each checked to be the file its option names, computed
+    from the config whose hash ``params["inputs"]`` holds (RunFileError names the file)."""
+    want = params["inputs"]
+    (ens,) = _inputs([relax_path], "ensemble", "relaxation", want["relaxation"])
+    (cmap,) = _inputs([chaos_path], "ensemble", "chaos", want["chaos"])
+    (comp,) = _inputs([cont_path], "runs", "continuum", want["continuum"])
+    (conv,) = _inputs([conv_path], "runs", "convergence", want["convergence"])
     return ens, cmap, comp, conv
 
 
-def _check_chaos_points(datasets, paths):
-    """Chaos points: one file per (a, T), its name (if a=..,T=..) matching its content,
-    the same column otherwise, and no replica twice in a file (RunFileError names it)."""
+def _check_chaos_points(datasets, paths, points):
+    """Chaos points: every point of the grid (``points``) once, its file's name (if
+    a=..,T=..) matching its content, no replica twice in a file (RunFileError names it)."""
     import re
 
     from ..io import RunFileError
 
     seen = {}
     for ds, p in zip(datasets, paths, strict=True):
-        key = (float(ds.attrs["a"]), float(ds.attrs["T"]))
+        key = _name(ds)
         m = re.fullmatch(r"a=([0-9.e+-]+),T=([0-9.e+-]+)", Path(p).stem)
-        if m and (float(m.group(1)), float(m.group(2))) != key:
-            raise RunFileError(f"{p} holds the point a={key[0]:g}, T={key[1]:g}, not its name's")
+        if m and (float(m.group(1)), float(m.group(2))) != (ds.attrs["a"], ds.attrs["T"]):
+            raise RunFileError(f"{p} holds the point {key}, not its name's")
         if key in seen:
-            raise RunFileError(
-                f"the point a={key[0]:g}, T={key[1]:g} appears twice: {seen[key]}, {p}"
-            )
+            raise RunFileError(f"the point {key} appears twice: {seen[key]}, {p}")
         seen[key] = p
         reps = ds["replica"].values
         if len(set(reps.tolist())) != reps.size:
             raise RunFileError(f"{p}: a replica appears twice in the point")
-    _same_physics(datasets, paths, ignore=("a", "T"))
+    missing = [pt for pt in points if pt not in seen]
+    if missing:
+        raise RunFileError(f"no file of the chaos point(s) {', '.join(missing)}")
 
 
 def trajectories_stage(params, set_name, out):
@@ -232,13 +236,14 @@ def ensemble_stage(params, kind, out, inputs):
     from .measures import chaos_map, relaxation_ensemble
 
     if kind == "relaxation":
-        # one column, batches named as they hold, no replica twice
-        check_run_files(inputs, study="column")
-    if kind == "relaxation":  # streamed: one batch file in memory at a time
-        ds = relaxation_ensemble(_inputs([p], "runs", kind)[0] for p in inputs)
+        # the batches of the column asked for, named as they hold, no replica twice
+        want = params["runs_config_hash"]
+        check_run_files(inputs, study="column", config_hash=want, kind=kind)
+        # streamed: one batch file in memory at a time
+        ds = relaxation_ensemble(_inputs([p], "runs", kind, want)[0] for p in inputs)
     else:
-        datasets = _inputs(inputs, "runs", kind)
-        _check_chaos_points(datasets, inputs)
+        datasets = _inputs(inputs, "runs", kind, params["points"])
+        _check_chaos_points(datasets, inputs, params["points"])
         ds = chaos_map(datasets, float(params.get("confidence", 0.95)))
     _write(ds, out, params, stage="ensemble", kind=kind)
 
@@ -251,7 +256,7 @@ def fits_stage(params, relax_path, chaos_path, cont_path, conv_path, out_csv, ou
     from ..io import write_text
     from .fits import relaxation_fit, summary_rows, theorem1_note
 
-    ens, cmap, comp, conv = _reduced_inputs(relax_path, chaos_path, cont_path, conv_path)
+    ens, cmap, comp, conv = _reduced_inputs(params, relax_path, chaos_path, cont_path, conv_path)
     units = params.get("units", {"length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s"})
     fit = relaxation_fit(ens, int(params.get("n_boot", 1000)))
     rows, thresholds = summary_rows(fit, cmap, comp, conv, units)
@@ -287,10 +292,13 @@ def figures_stage(params, traj, cont_path, relax_path, chaos_path, conv_path, ou
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     units = params.get("units", {"length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s"})
-    ens, cmap, comp, conv = _reduced_inputs(relax_path, chaos_path, cont_path, conv_path)
+    ens, cmap, comp, conv = _reduced_inputs(params, relax_path, chaos_path, cont_path, conv_path)
     made = []
     made += save_figure(
-        F.fig1_trajectories(_inputs(traj, "runs", "trajectories"), units["fig2_length"]),
+        F.fig1_trajectories(
+            _inputs(traj, "runs", "trajectories", params["inputs"]["trajectories"]),
+            units["fig2_length"],
+        ),
         out / "fig1_trajectories",
     )
     made += save_figure(F.fig2_continuum(comp), out / "fig2_continuum")

@@ -11,7 +11,8 @@ import os
 
 import click
 
-from ..cli import params_option
+from ..cli import INDEX, THREADS, params_option
+from ..config import validate_params
 
 __all__ = ["cli"]
 
@@ -25,6 +26,17 @@ def _threads(threads: int) -> int:
     return threads
 
 
+def _later_params(params: dict, fits: bool = False) -> dict:
+    """``--params`` of the ensemble (or fits) stage, checked: the point, the config hash
+    of its run files and ``ensemble`` (and ``fits`` and the row label)."""
+    refs = {"ensemble": "/properties/ensemble"}
+    extra = {"point": {"type": "string"}, "runs_config_hash": {"type": "string"}}
+    if fits:
+        refs["fits"] = "/properties/fits"
+        extra["label"] = {"type": "string"}
+    return validate_params(params, "drum", refs, extra, fill=False)
+
+
 @click.group("drum")
 def cli():
     """Rotating drum (Maghsoodi & Luijten 2016): λ(t) and V(t) at avalanche onset and decay."""
@@ -32,11 +44,11 @@ def cli():
 
 @cli.command("init")
 @params_option
-@click.option("--batch", type=int, required=True, help="Batch index b (replicas b*size...).")
+@click.option("--batch", type=INDEX, required=True, help="Batch index b (replicas b*size...).")
 @click.option(
     "--out", type=click.Path(dir_okay=False), required=True, help="init/<point>/batch_<b>.nc"
 )
-@click.option("--threads", type=int, default=1, show_default=True)
+@click.option("--threads", type=THREADS, default=1, show_default=True)
 def init_cmd(params, batch, out, threads):
     """Random placement and start-up (fall, or settling) of the replicas of one batch."""
     from .stages import init_stage
@@ -46,12 +58,12 @@ def init_cmd(params, batch, out, threads):
 
 @cli.command("runs")
 @params_option
-@click.option("--batch", type=int, required=True)
+@click.option("--batch", type=INDEX, required=True)
 @click.option("--init", "init_path", type=click.Path(exists=True, dir_okay=False), required=True)
 @click.option(
     "--out", type=click.Path(dir_okay=False), required=True, help="runs/<point>/batch_<b>.nc"
 )
-@click.option("--threads", type=int, default=1, show_default=True)
+@click.option("--threads", type=THREADS, default=1, show_default=True)
 def runs_cmd(params, batch, init_path, out, threads):
     """The protocol (onset window, continuous avalanche, decay window) for one batch."""
     from .stages import runs_stage
@@ -67,7 +79,7 @@ def ensemble_cmd(params, out, runs):
     """Streaming reduction of run files to means, standard errors and counts."""
     from .stages import ensemble_stage
 
-    ensemble_stage(params, runs, out)
+    ensemble_stage(_later_params(params), runs, out)
 
 
 @cli.command("fits")
@@ -81,7 +93,7 @@ def fits_cmd(params, ensemble_path, out, runs):
     """Onset time, sign-change times and lags of one point, with fit errors and CIs."""
     from .stages import fits_stage
 
-    fits_stage(params, ensemble_path, runs, out)
+    fits_stage(_later_params(params, fits=True), ensemble_path, runs, out)
 
 
 @cli.command("summary")
@@ -112,17 +124,47 @@ def summary_cmd(out, fits):
 )
 @click.option("--outdir", type=click.Path(file_okay=False), required=True)
 def figures_cmd(params, ensembles, fits, snapshot, outdir):
-    """Figs. 2-5 (reference point) and 6-7 (across points), PNG and PDF."""
+    """Figs. 2-5 (reference point) and 6-8 (across points), PNG and PDF."""
     from .stages import figures_stage
 
+    point = {
+        "type": "object",
+        "required": ["name", "period_s", "startup", "friction", "label", "runs_config_hash"],
+    }
+    params = validate_params(
+        params, "drum", {"figures": "/properties/figures"},
+        {"points": {"type": "array", "minItems": 1, "items": point}}, fill=False,
+    )  # fmt: skip
     figures_stage(params, ensembles, fits, snapshot, outdir)
+
+
+@cli.command("restamp")
+@click.option(
+    "--configfile", type=click.Path(exists=True, dir_okay=False), required=True,
+    help="The config whose points the files are to serve.",
+)  # fmt: skip
+@click.argument("files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
+def restamp_cmd(configfile, files):
+    """Reuse init and run files (e.g. of a renamed point) under this config's point names.
+
+    Each file whose physics subset is that of a point of the config is written, data
+    untouched, to that point's folder (results/<scale>/drum/<init|runs>/<point>/) with
+    the point's name and config hash; a file whose physics no point has is refused.
+    """
+    from ..config import load
+    from .stages import restamp_stage
+
+    cfg = load(configfile)
+    if "drum" not in cfg:
+        raise click.BadParameter(f"{configfile} has no drum section", param_hint="--configfile")
+    restamp_stage(cfg["drum"], files, os.path.join(cfg["results"], cfg["scale"], "drum"))
 
 
 @cli.command("replica")
 @click.option(
     "--seed",
     "replica",
-    type=int,
+    type=INDEX,
     required=True,
     help="Replica index S: its stream is replica_rng('drum', physics, S), the same "
     "as replica S of the workflow.",
@@ -149,8 +191,6 @@ def replica_cmd(replica, out, configfile, point, tiny):
     from .layout import filled, point_sections, seed_physics
     from .protocol import run_replica, tiny_section
 
-    if replica < 0:
-        raise click.BadParameter(f"must be >= 0, got {replica}", param_hint="--seed")
     folder = os.path.dirname(os.path.abspath(out))
     if not (os.path.isdir(folder) and os.access(folder, os.W_OK)):
         raise click.BadParameter(f"cannot write into {folder}", param_hint="--out")

@@ -26,10 +26,12 @@ from collections.abc import Mapping
 from pathlib import Path
 from types import MappingProxyType
 
+import numpy as np
 import yaml
 
-from ..config import schema_dir
+from ..config import MAX_SIMULATION_JOBS, check_memory, check_plan, fill_defaults, schema_dir
 from ..errors import ConfigError
+from ..io import config_hash
 from .model import omega
 
 __all__ = [
@@ -41,6 +43,7 @@ __all__ = [
     "point_names",
     "point_sections",
     "rule_params",
+    "ENSEMBLE_KEYS",
     "batch_ids",
     "n_batches",
     "init_file",
@@ -125,33 +128,46 @@ def point_names(section: Mapping) -> list[str]:
     return list(point_sections(section))
 
 
+ENSEMBLE_KEYS = ("ensemble", "point", "runs_config_hash")
+"""The keys of an ensemble rule's config subset (:func:`rule_params`); a fits rule's subset
+holds them too, so that the fits stage knows the config hash of the ensemble file it
+reads."""
+
+
 def rule_params(section: Mapping) -> dict[str, dict]:
     """The config subset each drum rule depends on (its ``params:``), per point.
 
-    Returns ``{"sim": {point: ...}, "ensemble": ..., "fits": ..., "figures": ...,
-    "summary": ...}``: a simulation depends on its point's physics (``k_t`` only under
+    Returns ``{"sim": {point: ...}, "ensemble": {point: ...}, "fits": {point: ...},
+    "figures": ...}``: a simulation depends on its point's physics (``k_t`` only under
     static friction), settle (settled start-up only), protocol and batch size
-    (:func:`trajectory_keys`); the ensemble on ``exclude_flagged``; the fits on that and
-    ``fits`` (and its point's label, for the row names); the figures on ``figures`` and
-    the list of points (name, period, start-up, friction, label; the reference first: a
-    list, because the JSON of the params has sorted keys). Editing the physics of one
-    point, or adding a point, changes no other point's subsets.
+    (:func:`trajectory_keys`); the ensemble on ``exclude_flagged`` and on which files it
+    reduces: its point's name and the config hash of that point's run files
+    (``runs_config_hash``, the hash of the point's simulation subset, :data:`ENSEMBLE_KEYS`);
+    the fits on those and ``fits`` (and its point's label, for the row names); the
+    figures on ``figures`` and the list of points (name, period, start-up, friction,
+    label, runs config hash; the reference first: a list, because the JSON of the params
+    has sorted keys). Editing the physics of one point, or adding a point, changes no
+    other point's subsets. A stage checks every file it reads against the point and
+    hash its subset names (:func:`granpipe.io.expect_input`).
     """
     sec = filled(section)
-    sim, fits, table = {}, {}, []
-    ensemble = {"ensemble": {"exclude_flagged": sec["ensemble"]["exclude_flagged"]}}
+    sim, ensemble, fits, table = {}, {}, {}, []
+    flagged = {"exclude_flagged": sec["ensemble"]["exclude_flagged"]}
     for name, p in point_sections(sec).items():
         sim[name] = {
             **trajectory_keys(p),
             "ensemble": {"batch_size": p["ensemble"]["batch_size"]},
         }
-        fits[name] = {**ensemble, "fits": sec["fits"], "label": point_label(p, sec)}
+        runs_hash = config_hash(sim[name])
+        ensemble[name] = {"ensemble": flagged, "point": name, "runs_config_hash": runs_hash}
+        fits[name] = {**ensemble[name], "fits": sec["fits"], "label": point_label(p, sec)}
         table.append({
             "name": name,
             "period_s": p["physics"]["period_s"],
             "startup": p["protocol"]["startup"],
             "friction": p["physics"]["friction"],
             "label": fits[name]["label"],
+            "runs_config_hash": runs_hash,
         })  # fmt: skip
     return {
         "sim": sim,
@@ -235,25 +251,6 @@ _NOT_SEEDED = (
 friction law, so that replica k of a static-friction point starts from the same placement
 and tangent vector as replica k of its viscous twin (paired replicas: the difference
 between the laws is measured on common random numbers)."""
-
-
-def _fill_defaults(instance, schema, root):
-    """Recursively set schema defaults (objects and their properties) in place."""
-    if "$ref" in schema:
-        ref = schema["$ref"]
-        if not ref.startswith("#/"):
-            raise ValueError(f"unsupported $ref {ref}")
-        target = root
-        for part in ref[2:].split("/"):
-            target = target[part]
-        schema = {**target, **{k: v for k, v in schema.items() if k != "$ref"}}
-    if isinstance(instance, dict) and "properties" in schema:
-        for key, sub in schema["properties"].items():
-            if key not in instance and "default" in sub:
-                instance[key] = copy.deepcopy(sub["default"])
-            if key in instance:
-                _fill_defaults(instance[key], sub, root)
-    return instance
 
 
 @functools.lru_cache(maxsize=4)
@@ -349,7 +346,7 @@ def filled(section: Mapping | None) -> dict:
         return thaw(section)
     path = schema_dir() / "drum.schema.yaml"
     schema, validator = _schema(str(path), path.stat().st_mtime_ns)
-    sec = _fill_defaults(copy.deepcopy(dict(section or {})), schema, schema)
+    sec = fill_defaults(copy.deepcopy(dict(section or {})), schema, schema)
     errors = sorted(validator.iter_errors(sec), key=lambda e: list(map(str, e.absolute_path)))
     if errors:
         msgs = ["drum." + ".".join(map(str, e.absolute_path)) + f": {e.message}" for e in errors]
@@ -365,11 +362,14 @@ def filled(section: Mapping | None) -> dict:
     return sec
 
 
-MAX_SIMULATION_JOBS = 10_000
-"""The most init + runs jobs a drum config may ask for. Snakemake's planning time grows
-with the number of jobs: the paper scale (2,939 jobs over the three studies, 1,560 of
-them the drum's) plans in 17 s, ~6 ms per job, so 10,000 jobs take about a minute before
-anything runs; a larger ``batch_size`` is the remedy."""
+PLACEMENT_LIMIT = 0.45
+"""The largest area fraction of the mobile disks, each grown by the placement gap, in the
+disk their centres may reach: random sequential addition stalls towards its jamming
+limit (0.547 in the plane; the paper's drum fills 0.23)."""
+
+BYTES_PER_DISK = 4096
+"""A generous bound on one replica's memory per disk (state rows, neighbour and pair
+lists, pair buffers: ``granpipe.engine.layout``), for the memory check of :func:`check`."""
 
 
 def check(section: Mapping) -> dict:
@@ -418,16 +418,46 @@ def check(section: Mapping) -> dict:
             f"config key 'drum.figures.snapshot_batch' = {snap}: the reference point has "
             f"only {batches[0]} batch(es) (0..{batches[0] - 1})"
         )
-    jobs = 2 * sum(batches)
-    if jobs > MAX_SIMULATION_JOBS:
-        raise ConfigError(
-            f"config keys 'drum.ensemble.n_replicas' / 'batch_size': {jobs} simulation jobs "
-            f"over {len(pts)} point(s), more than {MAX_SIMULATION_JOBS} (Snakemake would "
-            "take over a minute to plan them): raise 'drum.ensemble.batch_size'"
-        )
+    check_plan(
+        "drum.ensemble.n_replicas", 2 * sum(batches),
+        f"{len(pts)} point(s); raise 'drum.ensemble.batch_size'",
+    )  # fmt: skip
     for p in pts:
         steps(p)  # times shorter than a step, a pre-rotation of no step
+    _check_drum(sec)
     return sec
+
+
+def _check_drum(sec: Mapping) -> None:
+    """The drum holds its disks: the largest fits inside the wall ring with the placement
+    gap, and all of them can be placed at random (:data:`PLACEMENT_LIMIT`); one job's
+    replicas fit in this machine's memory."""
+    from .model import diameters, geometry
+
+    ph, gap = sec["physics"], float(sec["protocol"]["placement_gap"])
+    inner = geometry(ph).inner_radius
+    d = diameters(ph)
+    reach = inner - gap
+    if reach - float(d.max()) / 2 <= 0:
+        raise ConfigError(
+            f"config keys 'drum.physics.n_wall' = {ph['n_wall']} and 'd_wall' = {ph['d_wall']}: "
+            f"the wall ring's free radius {inner:.4g} d_s holds no disk of diameter "
+            f"{float(d.max()):g} with the placement gap {gap:g}"
+        )
+    fraction = float(np.sum((d + gap) ** 2) / (4.0 * reach**2))
+    if fraction > PLACEMENT_LIMIT:
+        raise ConfigError(
+            f"config keys 'drum.physics.n_small' = {ph['n_small']} and 'n_large' = "
+            f"{ph['n_large']}: the disks (with the placement gap) would cover {fraction:.3g} "
+            f"of the drum's free disk (radius {inner:.4g} d_s from 'n_wall' = "
+            f"{ph['n_wall']} and 'd_wall' = {ph['d_wall']}), more than the "
+            f"{PLACEMENT_LIMIT} random placement reaches: fewer disks or a larger drum"
+        )
+    n = len(d) + int(ph["n_wall"])
+    check_memory(
+        "drum.physics.n_small", ph["n_small"],
+        n * BYTES_PER_DISK * int(sec["ensemble"]["threads"]),
+    )  # fmt: skip
 
 
 def _values(sec: Mapping, key: tuple) -> list:

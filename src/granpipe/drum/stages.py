@@ -18,8 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import check_run_files, read_dataset, write_dataset
-from .layout import load
+from ..errors import GranpipeError, RunFileError
+from ..io import check_run_files, config_hash, expect_input, read_dataset, write_dataset
+from .layout import ENSEMBLE_KEYS, load
 
 __all__ = [
     "init_stage",
@@ -28,6 +29,7 @@ __all__ = [
     "fits_stage",
     "summary_stage",
     "figures_stage",
+    "restamp_stage",
 ]
 
 STUDY = "drum"
@@ -41,6 +43,13 @@ def _point(sec) -> str:
     from .layout import point_name
 
     return point_name(sec)
+
+
+def _section(params: Mapping):
+    """The drum section of a later stage's ``--params`` (without the point, the run
+    files' config hash and the row label: :func:`granpipe.drum.layout.rule_params`)."""
+    section_keys = set(params) - {"point", "runs_config_hash", "label"}
+    return load({k: params[k] for k in section_keys})
 
 
 def init_stage(params: Mapping, batch: int, out: str | os.PathLike, threads: int = 1) -> Path:
@@ -65,12 +74,12 @@ def runs_stage(
     from .protocol import run_batch
 
     sec = load(params)  # filled once, handed down frozen
-    (info,) = check_run_files([init], study=STUDY, stage="init")
-    init_ds = read_dataset(init)
-    if init_ds.attrs.get("point") != _point(sec):
-        raise ValueError(f"{init} holds point {init_ds.attrs.get('point')}, not {_point(sec)}")
+    (info,) = check_run_files(
+        [init], study=STUDY, stage="init", point=_point(sec), config_hash=config_hash(params)
+    )
     if info["batch"] is not None and int(info["batch"]) != int(batch):
-        raise ValueError(f"{init} holds batch {info['batch']}, not batch {batch}")
+        raise RunFileError(f"{init} holds batch {info['batch']}, not batch {batch}")
+    init_ds = read_dataset(init)
     ds = run_batch(sec, int(batch), init_ds, threads=threads, log=_log)
     seeds = [int(s) for s in ds["seed"].values]
     path = write_dataset(
@@ -85,16 +94,19 @@ def ensemble_stage(params: Mapping, runs: Sequence[str | os.PathLike], out) -> P
     """Stream the run files of one point into ensemble means, standard errors and counts."""
     from .fits import reduce_runs
 
-    sec = load(params)
+    sec = _section(params)
     t0 = time.perf_counter()
-    info = check_run_files(runs, study=STUDY)
+    point, runs_hash = params["point"], params["runs_config_hash"]
+    check_run_files(runs, study=STUDY, point=point, config_hash=runs_hash)
     ds = reduce_runs(runs, exclude_flagged=sec["ensemble"]["exclude_flagged"])
-    ds.attrs["runs_config_hash"] = info[0]["config_hash"]
     _log(
         f"reduced {ds.attrs['n_batches']} batch(es): {ds.attrs['n_replicas']} replicas used, "
         f"{ds.attrs['n_excluded']} excluded, in {time.perf_counter() - t0:.1f} s"
     )
-    path = write_dataset(ds, out, config_subset=params, study=STUDY, stage="ensemble")
+    path = write_dataset(
+        ds, out, config_subset=params, study=STUDY, stage="ensemble", point=point,
+        runs_config_hash=runs_hash,
+    )  # fmt: skip
     _log(f"wrote {path}")
     return path
 
@@ -115,12 +127,15 @@ def fits_stage(
     from .fits import PAPER_VALUES, drum_fits, load_units
 
     label = str(params.get("label", ""))
-    sec = load({k: v for k, v in params.items() if k != "label"})
+    sec = _section(params)
     fcfg = sec["fits"]
-    info = check_run_files(runs, study=STUDY)
+    point, runs_hash = params["point"], params["runs_config_hash"]
+    check_run_files(runs, study=STUDY, point=point, config_hash=runs_hash)
     ens = read_dataset(ensemble)
-    if ens.attrs.get("runs_config_hash") not in (None, info[0]["config_hash"]):
-        raise ValueError(f"{ensemble} was reduced from other run files than {runs[0]}")
+    expect_input(
+        ens, ensemble, study=STUDY, stage="ensemble", point=point,
+        config_hash=config_hash({k: params[k] for k in ENSEMBLE_KEYS}),
+    )  # fmt: skip
     units = load_units(runs, fcfg["bootstrap_unit"], sec["ensemble"]["exclude_flagged"])
     n_units = units["onset"].speed.shape[0]
     _log(
@@ -145,7 +160,10 @@ def fits_stage(
         label=label,
         quantities=" ".join(r.quantity for r in results),
     )
-    path = write_dataset(ds, out, config_subset=params, study=STUDY, stage="fits")
+    path = write_dataset(
+        ds, out, config_subset=params, study=STUDY, stage="fits", point=point,
+        runs_config_hash=runs_hash,
+    )  # fmt: skip
     _log(f"wrote {path}")
     return path
 
@@ -156,11 +174,14 @@ def summary_stage(fits: Sequence[str | os.PathLike], summary: str | os.PathLike)
     from ..analysis.summary import results_rows, write_summary
     from .fits import PAPER_VALUES
 
-    rows = []
+    rows, points = [], {}
     for path in fits:
         ds = read_dataset(path)
-        if ds.attrs.get("study") != STUDY or ds.attrs.get("stage") != "fits":
-            raise ValueError(f"{path} is not a drum fits file")
+        expect_input(ds, path, study=STUDY, stage="fits")
+        point = str(ds.attrs.get("point"))
+        if point in points:
+            raise RunFileError(f"point {point} appears twice: in {points[point]} and in {path}")
+        points[point] = path
         if ds.attrs.get("label", ""):
             rows += results_rows(ds, STUDY)
         else:  # the reference point: the paper's numbers beside its rows
@@ -191,16 +212,25 @@ def figures_stage(
     dpi = int(sec["figures"]["dpi"])
     points = list(params["points"])
     if len(points) != len(ensembles) or len(points) != len(fits):
-        raise ValueError("figures need one ensemble and one fits file per point")
+        raise RunFileError(
+            f"figures need one ensemble and one fits file per point ({len(points)} points): "
+            f"got {len(ensembles)} ensemble and {len(fits)} fits file(s)"
+        )
     table = {}
     for meta, e, f in zip(points, ensembles, fits, strict=True):
-        name = meta["name"]
-        if Path(e).stem != name or Path(f).stem != name:
-            raise ValueError(f"{e} / {f} are not the files of point {name}")
-        table[name] = {**meta, "ensemble": read_dataset(e), "fits": read_dataset(f)}
+        name, runs_hash = meta["name"], meta["runs_config_hash"]
+        ens, fit = read_dataset(e), read_dataset(f)
+        for ds, path, stage in ((ens, e, "ensemble"), (fit, f, "fits")):
+            expect_input(ds, path, study=STUDY, stage=stage, point=name,
+                         runs_config_hash=runs_hash)  # fmt: skip
+        table[name] = {**meta, "ensemble": ens, "fits": fit}
     ref = table[next(iter(table))]
     ens, fit = ref["ensemble"], ref["fits"]
     run = read_dataset(snapshot)
+    expect_input(
+        run, snapshot, study=STUDY, stage="runs", point=points[0]["name"],
+        config_hash=points[0]["runs_config_hash"], batch=sec["figures"]["snapshot_batch"],
+    )  # fmt: skip
     outdir = Path(outdir)
     makers = {
         2: lambda: figs.fig2_snapshot(run),
@@ -216,3 +246,58 @@ def figures_stage(
         paths += save_figure(makers[k](), outdir / f"fig{k}_{name}", dpi=dpi)
     _log(f"wrote {len(paths)} figure files to {outdir}")
     return paths
+
+
+def restamp_stage(
+    section: Mapping, files: Sequence[str | os.PathLike], results: str | os.PathLike
+) -> list[Path]:
+    """Reuse init and run files under the point names of a config: each file whose
+    physics subset is that of a point of ``section`` (its stored config filled with this
+    version's defaults, against the point's simulation subset of
+    :func:`granpipe.drum.layout.rule_params`) is written, data untouched, to that point's
+    folder under ``results`` (``results/<scale>/drum``) with the point's name and config
+    hash, so that the stages accept it. A file whose physics no point has, or whose
+    target exists, is refused naming both.
+    """
+    from ..io import config_from_attrs
+    from .layout import init_file, point_sections, rule_params, run_file, trajectory_keys
+
+    sim = rule_params(section)["sim"]
+    points = point_sections(section)
+    targets = []
+    for f in files:
+        ds = read_dataset(f)
+        stage = ds.attrs.get("stage")
+        if ds.attrs.get("study") != STUDY or stage not in ("init", "runs"):
+            raise RunFileError(f"{f} is not a drum init or runs file")
+        try:
+            stored = load(config_from_attrs(ds))
+        except GranpipeError as exc:
+            raise RunFileError(f"{f}: its stored config is not a drum config here: {exc}") from None
+        have = {
+            **trajectory_keys(stored),
+            "ensemble": {"batch_size": stored["ensemble"]["batch_size"]},
+        }
+        name = next((n for n, want in sim.items() if want == have), None)
+        if name is None:
+            raise RunFileError(
+                f"{f} holds physics (point {ds.attrs.get('point')!r}) that no point of this "
+                f"config has (points: {', '.join(sim)}): it cannot be reused here"
+            )
+        where = init_file if stage == "init" else run_file
+        target = Path(results) / where(points[name], int(ds.attrs["batch"]))
+        if target.exists():
+            raise RunFileError(f"{f} would be written to {target}, which exists: remove it first")
+        targets.append((ds, f, name, target))
+    written = []
+    for ds, f, name, target in targets:
+        seeds = [int(s) for s in str(ds.attrs["seeds"]).split()]
+        write_dataset(
+            ds, target, config_subset=sim[name], seeds=seeds, study=STUDY,
+            stage=ds.attrs["stage"], batch=int(ds.attrs["batch"]), point=name,
+            restamped_from=f"{f} ({ds.attrs.get('point')}, config hash "
+            f"{str(ds.attrs.get('config_hash'))[:12]})",
+        )  # fmt: skip
+        _log(f"{f} -> {target}")
+        written.append(target)
+    return written
