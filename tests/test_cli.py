@@ -53,7 +53,7 @@ def _misuses(tmp_path, repo):
     junk = tmp_path / "junk.nc"
     junk.write_text("not netCDF")
     out = str(tmp_path / "out.nc")
-    box_runs = json.dumps(layout.runs_params(SECTION, 1, 0.6))
+    box_runs = json.dumps(layout.runs_params(SECTION, 1, layout.Walls(0.6)))
     relax = {"physics": {"N": 20, "m": 0.001, "r": 0.005, "g": 9.81, "stiffness_factor": 50.0,
                          "e": 0.09, "a": 0.01, "tap_duration": 0.05, "T": 1.0},
              "n_taps": -1, "batch_size": 2, "perturbation": 1.0, "step_factor": 0.1}  # fmt: skip

@@ -142,7 +142,7 @@ def test_stages_refuse_files_that_are_not_their_inputs(pipeline, tmp_path):
             root / layout.init_file(5, "crystal", W6, 0), tmp_path / "run.nc",
             previous=wrong_part, log=None,
         )  # fmt: skip
-    point = layout.point_name(5, 2.0, "crystal", 0.6)
+    point = layout.point_name(5, 2.0, "crystal", W6)
     mixed = [
         root / layout.run_file(5, 2.0, "crystal", W6, 0, 0),
         root / layout.run_file(5, 1.4, "crystal", W6, 0, 1),
