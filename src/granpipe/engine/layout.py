@@ -29,10 +29,9 @@ B_DX, B_DY, B_DVX, B_DVY, B_EX, B_EY, B_EVX, B_EVY, B_WI, B_WJ, B_DWI, B_DWJ = r
 # written by the law's rows and read by the scatter: force on i, torques on i and j, and
 # their perturbations
 B_FX, B_FY, B_TI, B_TJ, B_GX, B_GY, B_GTI, B_GTJ = range(12, 20)
-# the pair constants and histories, copied along when the pass is compacted; the
-# histories an evaluation that keeps them (a refresh) computes and drops
-B_S, B_L, B_M, B_D, B_XI, B_DXI, B_XO, B_DXO = range(20, 28)
-NB = 28
+# the pair constants and histories, copied along when the pass is compacted
+B_S, B_L, B_M, B_D, B_XI, B_DXI = range(20, 26)
+NB = 26
 # rows of pair_ij (3, P): owner i, partner j, and (compacted passes) the pair index k
 PI, PJ, PK = range(3)
 # clock (NCLOCK,): time origin, wall angle, its angular velocity over the last step, the

@@ -207,11 +207,11 @@ def _pair_constants(sca, pair_start, pair_ij, pair_c, npairs, overlap_frac):
 
 
 @njit
-def rebuild(vec, sca, ivec, skin, st, history):
+def rebuild(vec, sca, ivec, skin, st, history, tangent):
     """Rebuild the neighbour list of one replica (``st``: its storage tuple,
     :data:`granpipe.engine.layout.STORAGE`) at the current positions; with ``history``
-    (laws with shear history) carry each kept pair's history and its perturbation over
-    (:func:`carry_history`). Returns False on a list overflow.
+    (laws with shear history) carry each kept pair's history over (:func:`carry_history`),
+    and with ``tangent`` its perturbation too. Returns False on a list overflow.
     """
     # fmt: off
     (_vec, _sca, _ivec, _walls, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, old_start,
@@ -226,7 +226,7 @@ def rebuild(vec, sca, ivec, skin, st, history):
         for k in range(npairs):
             old_j[k] = pj[k]
             old_xi[k] = pair_xi[k]
-            old_dxi[k] = pair_dxi[k]
+            old_dxi[k] = pair_dxi[k] if tangent else 0.0
     counters[L.NEAR_WALLS] = -1  # the cell pass overwrites the near-wall list
     m = build_pairs(
         vec[L.POS],
@@ -260,5 +260,6 @@ def rebuild(vec, sca, ivec, skin, st, history):
                 pair_dxi[k] = 0.0
         else:
             carry_history(old_start, old_j, old_xi, pair_start, pj, pair_xi)
-            carry_history(old_start, old_j, old_dxi, pair_start, pj, pair_dxi)
+            if tangent:
+                carry_history(old_start, old_j, old_dxi, pair_start, pj, pair_dxi)
     return True

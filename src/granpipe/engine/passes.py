@@ -72,7 +72,7 @@ from granpipe.engine.neighbours import rebuild
 __all__ = ["Forward", "Tangent", "FORWARD", "TANGENT", "tangent_on", "replica_of", "gather"]
 __all__ += ["gather_compact", "law_rows", "scatter", "flat_walls", "forces", "kick_drift"]
 __all__ += ["final_kick", "tangent_kicks", "replica", "refresh_replica", "run_serial"]
-__all__ += ["refresh_serial"]
+__all__ += ["place_replica", "place_serial", "refresh_serial"]
 
 
 # --------------------------------------------------------------------------- modes
@@ -211,20 +211,24 @@ def _gather_rows(law, p, v, w, pi, pj, npairs, rows, cap, row, wrow):
 
 
 @njit
-def gather_compact(law, mode, vec, sca, pair_ij, pair_c, pair_xi, pair_dxi, buf, npairs, keep):
+def gather_compact(law, mode, vec, sca, pair_ij, pair_c, pair_xi, pair_dxi, buf, npairs):
     """Like :func:`gather`, keeping only touching pairs, with their constants (rows
     ``B_S`` .. ``B_D``) and histories (``B_XI``, ``B_DXI``).
 
-    A pair found apart loses its history here (unless ``keep``: a refresh). Returns the
-    count m of touching pairs;
+    A pair found apart loses its history here (and, with :data:`TANGENT`, its
+    perturbation: a forward run leaves the tangent vector as it was, and a new one is set
+    before the next run with it). Returns the count m of touching pairs;
     the rows hold m entries and ``pair_ij[L.PK, :m]`` their pair indices. Groups of four
     listed pairs that are all apart are skipped after one four-lane test
     (:func:`granpipe.engine.simd.touch_bits4`; in a dilute state most are, and a branch
     per pair mispredicts on the few that touch).
     """
     p = _flat(vec[L.POS])
-    tangent_rows = _flat(vec[L.T_POS]), _flat(vec[L.T_VEL])
-    rows = (p, _flat(vec[L.VEL]), *tangent_rows, sca[L.SPIN], sca[L.T_SPIN])
+    v = _flat(vec[L.VEL])
+    tr = _flat(vec[L.T_POS])
+    tv = _flat(vec[L.T_VEL])
+    w = sca[L.SPIN]
+    tw = sca[L.T_SPIN]
     pi = pair_ij[L.PI]
     pj = pair_ij[L.PJ]
     ssum = pair_c[L.P_SUM]
@@ -232,24 +236,27 @@ def gather_compact(law, mode, vec, sca, pair_ij, pair_c, pair_xi, pair_dxi, buf,
     m4 = npairs - npairs % 4
     for g in range(0, m4, 4):
         if simd.touch_bits4(p, pi, pj, g, ssum) == 0:
-            if law_has_history(law) and not keep:
+            if law_has_history(law):
                 for k in range(g, g + 4):
                     pair_xi[k] = 0.0
-                    pair_dxi[k] = 0.0
+                    if tangent_on(mode):
+                        pair_dxi[k] = 0.0
             continue
         for k in range(g, g + 4):
-            m = _compact_pair(law, mode, rows, pair_ij, pair_c, pair_xi, pair_dxi, buf, k, m, keep)
+            m = _compact_pair(law, mode, p, v, tr, tv, w, tw, pair_ij, pair_c, pair_xi, pair_dxi,
+                              buf, k, m)  # fmt: skip
     for k in range(m4, npairs):
-        m = _compact_pair(law, mode, rows, pair_ij, pair_c, pair_xi, pair_dxi, buf, k, m, keep)
+        m = _compact_pair(law, mode, p, v, tr, tv, w, tw, pair_ij, pair_c, pair_xi, pair_dxi,
+                          buf, k, m)  # fmt: skip
     return m
 
 
 @njit
-def _compact_pair(law, mode, rows, pair_ij, pair_c, pair_xi, pair_dxi, buf, k, m, keep):
+def _compact_pair(law, mode, p, v, tr, tv, w, tw, pair_ij, pair_c, pair_xi, pair_dxi, buf, k,
+                  m):  # fmt: skip
     """Listed pair ``k`` into entry ``m`` of the compacted rows if it touches (else its
-    history is dropped); returns the new count. ``rows``: the flat positions, velocities,
-    their perturbations, the spins and theirs."""
-    p, v, tr, tv, spin, tspin = rows
+    history is dropped); returns the new count. ``p, v, tr, tv``: the flat positions,
+    velocities and their perturbations; ``w, tw``: the spins and theirs."""
     i = pair_ij[L.PI, k]
     j = pair_ij[L.PJ, k]
     two = np.uint32(2)
@@ -260,9 +267,10 @@ def _compact_pair(law, mode, rows, pair_ij, pair_c, pair_xi, pair_dxi, buf, k, m
     y = p[i2 + one] - p[j2 + one]
     s = pair_c[L.P_SUM, k]
     if x * x + y * y > s * s:
-        if law_has_history(law) and not keep:
+        if law_has_history(law):
             pair_xi[k] = 0.0
-            pair_dxi[k] = 0.0
+            if tangent_on(mode):
+                pair_dxi[k] = 0.0
         return m
     buf[L.B_DX, m] = x
     buf[L.B_DY, m] = y
@@ -278,14 +286,15 @@ def _compact_pair(law, mode, rows, pair_ij, pair_c, pair_xi, pair_dxi, buf, k, m
         buf[L.B_EVX, m] = tv[i2] - tv[j2]
         buf[L.B_EVY, m] = tv[i2 + one] - tv[j2 + one]
     if law_has_spin(law):
-        buf[L.B_WI, m] = spin[i]
-        buf[L.B_WJ, m] = spin[j]
+        buf[L.B_WI, m] = w[i]
+        buf[L.B_WJ, m] = w[j]
         if tangent_on(mode):
-            buf[L.B_DWI, m] = tspin[i]
-            buf[L.B_DWJ, m] = tspin[j]
+            buf[L.B_DWI, m] = tw[i]
+            buf[L.B_DWJ, m] = tw[j]
     if law_has_history(law):
         buf[L.B_XI, m] = pair_xi[k]
-        buf[L.B_DXI, m] = pair_dxi[k]
+        if tangent_on(mode):
+            buf[L.B_DXI, m] = pair_dxi[k]
     pair_ij[L.PK, m] = k
     return m + 1
 
@@ -504,12 +513,13 @@ def scatter_compact(law, mode, vec, sca, ivec, pair_ij, buf, pair_xi, pair_dxi, 
         f[k] = mg[k]
         if tangent:
             tf[k] = 0.0
-    for i in range(trq.shape[0]):
-        if spin:
+    if spin:
+        for i in range(trq.shape[0]):
             trq[i] = 0.0
             if tangent:
                 tt[i] = 0.0
-        if count:
+    if count:
+        for i in range(contacts.shape[0]):
             contacts[i] = 0
     pi = pair_ij[L.PI]
     pj = pair_ij[L.PJ]
@@ -543,7 +553,8 @@ def scatter_compact(law, mode, vec, sca, ivec, pair_ij, buf, pair_xi, pair_dxi, 
                 tt[j] += buf[L.B_GTJ, q]
         if history:
             pair_xi[k] = buf[L.B_XI, q]
-            pair_dxi[k] = buf[L.B_DXI, q]
+            if tangent:
+                pair_dxi[k] = buf[L.B_DXI, q]
         if count:
             contacts[i] += 1
             contacts[j] += 1
@@ -603,15 +614,13 @@ def _first_deep_pair(pair_ij, buf, ssum, slim, npairs, compact):
 
 
 @njit
-def flat_walls(walls, law, mode, vec, sca, ivec, fw, zb, vb, dt, count, keep, info, step,
-               near):  # fmt: skip
+def flat_walls(walls, law, mode, vec, sca, ivec, fw, zb, vb, dt, count, info, step, near):
     """Contacts of the disks with the flat walls, through the law's leaves with the wall's
     parameters (``walls``: at the left, right and bottom wall). A wall is the second disk
     of a contact, infinitely heavy and not turning, moving with the drive (the bottom,
     and the side walls if shaken); normal from the wall into the box, contact point
     mid-overlap (lever ``a_i - overlap/2``), ``m_eff`` the disk's mass, the shear history
-    per disk and wall (``sca[L.XI_LEFT + w]``, its perturbation ``sca[L.T_XI_LEFT + w]``;
-    not written with ``keep``).
+    per disk and wall (``sca[L.XI_LEFT + w]``, its perturbation ``sca[L.T_XI_LEFT + w]``).
 
     ``near`` is ``(skin, clock, counters)``: the disks tested are those of the near-wall
     list (:func:`granpipe.engine.walls.wall_candidates`). Returns the contact count, or
@@ -631,9 +640,8 @@ def flat_walls(walls, law, mode, vec, sca, ivec, fw, zb, vb, dt, count, keep, in
     contacts = ivec[L.CONTACTS]
     cand = ivec[L.CELL_OF]  # scratch between list builds
     skin, clock, counters = near
-    reset = history and not keep
     m = W.wall_candidates(
-        vec, sca, ivec, fw, zb, skin, reset, tangent, clock, counters, cand, info, step
+        vec, sca, ivec, fw, zb, skin, history, tangent, clock, counters, cand, info, step
     )
     if m < 0:
         return -1
@@ -665,7 +673,7 @@ def flat_walls(walls, law, mode, vec, sca, ivec, fw, zb, vb, dt, count, keep, in
             frc[i, 1] += fy
             if spin:
                 sca[L.TORQUE, i] += ti * lever_torque
-            if history and not keep:
+            if history:
                 sca[L.XI_LEFT + w, i] = xi_new
             if tangent:
                 dfx, dfy, dti, _dtj, dxi_new = pair_force_jvp(
@@ -678,7 +686,7 @@ def flat_walls(walls, law, mode, vec, sca, ivec, fw, zb, vb, dt, count, keep, in
                 tf[i, 1] += dfy
                 if spin:
                     sca[L.T_TORQUE, i] += dti * lever_torque
-                if history and not keep:
+                if history:
                     sca[L.T_XI_LEFT + w, i] = dxi_new
             ncon += 1
             if count:
@@ -725,12 +733,11 @@ def count_contacts(vec, sca, ivec, pair_ij, pair_c, npairs, fw, zb):
 @njit
 def forces(
     laws, mode, vec, sca, ivec, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, buf, touch,
-    flip, clock, counters, fw, zb, vb, dt, count, keep, info, step, skin,
+    flip, clock, counters, fw, zb, vb, dt, count, info, step, skin,
 ):  # fmt: skip
     """Every contact force of one evaluation (``laws``: the leaves' parameters at pairs
-    and at the three flat walls), histories advanced by ``dt``, or kept as they are with
-    ``keep`` (a refresh: a look at the forces that does not change the state); with
-    ``count``, each disk's contacts (walls included) into ``CONTACTS``. Returns the
+    and at the three flat walls), histories advanced by ``dt``; with ``count``, each
+    disk's contacts (walls included) into ``CONTACTS``. Returns the
     contact count, or -1 after recording a bad overlap in ``info``. The arrays are one
     replica's storage (:data:`granpipe.engine.layout.STORAGE`), passed one by one: handed
     down as one tuple, they cost the step loop ~10 % (measured on the drum pile).
@@ -742,9 +749,7 @@ def forces(
     npairs = counters[L.N_PAIRS]
     compact = 2 * counters[L.LAST_PAIR_CONTACTS] < npairs
     if compact:
-        m = gather_compact(
-            law, mode, vec, sca, pair_ij, pair_c, pair_xi, pair_dxi, buf, npairs, keep
-        )
+        m = gather_compact(law, mode, vec, sca, pair_ij, pair_c, pair_xi, pair_dxi, buf, npairs)
         ssum, slim, smeff, sdiff = buf[L.B_S], buf[L.B_L], buf[L.B_M], buf[L.B_D]
         xis, dxis = buf[L.B_XI], buf[L.B_DXI]
     else:
@@ -757,14 +762,6 @@ def forces(
             pair_c[L.P_DIFF],
         )
         xis, dxis = pair_xi, pair_dxi
-    if keep and law_has_history(law):
-        # a look at the forces: the histories advance in scratch rows
-        xo = buf[L.B_XO]
-        dxo = buf[L.B_DXO]
-        for k in range(m):
-            xo[k] = xis[k]
-            dxo[k] = dxis[k]
-        xis, dxis = xo, dxo
     ncon, bad, nflip = law_rows(
         law, mode, buf, ssum, slim, smeff, sdiff, xis, dxis, touch, flip, m, dt
     )
@@ -797,7 +794,7 @@ def forces(
     counters[L.LAST_PAIR_CONTACTS] = ncon
     if W.has_flat(fw):
         nw = flat_walls(
-            laws[1], law, mode, vec, sca, ivec, fw, zb, vb, dt, count, keep, info, step,
+            laws[1], law, mode, vec, sca, ivec, fw, zb, vb, dt, count, info, step,
             (skin, clock, counters),
         )  # fmt: skip
         if nw < 0:
@@ -1130,11 +1127,11 @@ def replica(laws, mode, n_steps, stride, dt, g, wd, fw, skin, st, out_lam, out_n
         wmoved, zb, vb = W.advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin)
         counters[L.STEP] = step
         if moved or wmoved or counters[L.FORCE_REBUILD] != 0:
-            if not rebuild(vec, sca, ivec, skin, st, history):
+            if not rebuild(vec, sca, ivec, skin, st, history, tangent):
                 return _fail(info, L.LIST_OVERFLOW, -1, -1, step)
         ncon = forces(
             laws, mode, vec, sca, ivec, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, buf,
-            touch, flip, clock, counters, fw, zb, vb, dt, tangent, False, info, step, skin,
+            touch, flip, clock, counters, fw, zb, vb, dt, tangent, info, step, skin,
         )  # fmt: skip
         if ncon < 0:
             return info[0]
@@ -1158,45 +1155,52 @@ def replica(laws, mode, n_steps, stride, dt, g, wd, fw, skin, st, out_lam, out_n
 
 
 @njit
-def refresh_replica(laws, mode, rebuild_list, g, wd, fw, skin, st, dt, info):
-    """Place the walls, rebuild the list (with ``rebuild_list``) and evaluate the forces at
-    the current state: full-step velocities and wall velocities at the current time, the
-    shear histories kept as they are (a refresh looks at the forces of a state; the next
-    step advances the histories), contacts counted; under :data:`TANGENT` the
-    perturbations too, and the per-disk norms behind lambda. Used when a state is
-    created or edited (:meth:`granpipe.engine.Simulation.refresh`) and when a tangent
-    vector is set (without ``rebuild_list``: the caller keeps the forces and takes only
-    their perturbation).
-    """
+def place_replica(laws, mode, rebuild_list, g, wd, fw, skin, st, dt, info):
+    """Set gravity and check a state before it is evaluated; with ``rebuild_list`` place the
+    walls at the state's time and rebuild the list (histories carried). The first half of
+    a refresh (:meth:`granpipe.engine.Simulation.refresh`)."""
     # fmt: off
-    (vec, sca, ivec, walls, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, _old_start,
-     _old_j, _old_xi, _old_dxi, buf, touch, flip, _cell_count, _cell_start, clock,
+    (vec, sca, ivec, walls, _pair_start, _pair_ij, _pair_c, _pair_xi, _pair_dxi, _old_start,
+     _old_j, _old_xi, _old_dxi, _buf, _touch, _flip, _cell_count, _cell_start, clock,
      counters) = st
     # fmt: on
-    law = laws[0]
-    t = W.time_now(clock, counters, dt)
     n_walls = counters[L.N_WALLS]
     if n_walls > 0 and rebuild_list:
-        omega = W.wall_omega(wd, t)
+        omega = W.wall_omega(wd, W.time_now(clock, counters, dt))
         W.place_wall_disks(vec, sca, walls, n_walls, wd, clock[L.THETA], omega)
         clock[L.LAST_OMEGA] = omega
-    zb, vb = W.bottom(fw, t)
-    step = counters[L.STEP]
     _set_gravity(vec, sca, g[0], g[1])
     # a non-finite state is reported before anything else
     i = _first_nonfinite(vec, sca)
     if i >= 0:
-        return _fail(info, L.NONFINITE, i, -1, step)
-    if rebuild_list and not rebuild(vec, sca, ivec, skin, st, law_has_history(law)):
-        return _fail(info, L.LIST_OVERFLOW, -1, -1, step)
+        return _fail(info, L.NONFINITE, i, -1, counters[L.STEP])
+    history = law_has_history(laws[0])
+    if rebuild_list and not rebuild(vec, sca, ivec, skin, st, history, tangent_on(mode)):
+        return _fail(info, L.LIST_OVERFLOW, -1, -1, counters[L.STEP])
+    return L.OK
+
+
+@njit
+def refresh_replica(laws, mode, fw, skin, st, dt, info):
+    """Evaluate the forces at the current state: full-step velocities, wall velocities at
+    the current time, contacts counted; under :data:`TANGENT` the perturbations too, and
+    the per-disk norms behind lambda. The second half of a refresh; the evaluation
+    advances no history (``dt = 0``), and the caller restores the histories it changed
+    (a refresh looks at a state's forces; the next step advances its histories)."""
+    # fmt: off
+    (vec, sca, ivec, _walls, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, _old_start,
+     _old_j, _old_xi, _old_dxi, buf, touch, flip, _cell_count, _cell_start, clock,
+     counters) = st
+    # fmt: on
+    zb, vb = W.bottom(fw, W.time_now(clock, counters, dt))
     ncon = forces(
         laws, mode, vec, sca, ivec, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, buf,
-        touch, flip, clock, counters, fw, zb, vb, 0.0, True, True, info, step, skin,
+        touch, flip, clock, counters, fw, zb, vb, 0.0, True, info, counters[L.STEP], skin,
     )  # fmt: skip
     if ncon < 0:
         return info[0]
     if tangent_on(mode):
-        _tangent_norms(law, vec, sca)
+        _tangent_norms(laws[0], vec, sca)
     return L.OK
 
 
@@ -1215,7 +1219,14 @@ def run_serial(laws, mode, n_steps, stride, dt, g, wd, fw, skin, st, out_lam, ou
 
 
 @njit
-def refresh_serial(laws, mode, rebuild_list, g, wd, fw, skin, st, dt, info):
+def place_serial(laws, mode, rebuild_list, g, wd, fw, skin, st, dt, info):
+    """:func:`place_replica` over replicas."""
+    for r in range(info.shape[0]):
+        place_replica(laws, mode, rebuild_list, g, wd, fw, skin, replica_of(st, r), dt, info[r])
+
+
+@njit
+def refresh_serial(laws, mode, fw, skin, st, dt, info):
     """:func:`refresh_replica` over replicas."""
     for r in range(info.shape[0]):
-        refresh_replica(laws, mode, rebuild_list, g, wd, fw, skin, replica_of(st, r), dt, info[r])
+        refresh_replica(laws, mode, fw, skin, replica_of(st, r), dt, info[r])

@@ -56,7 +56,7 @@ def _walls(nrep, laws, mode, st, fw, skin, info):
     c = 0
     for _ in range(nrep):
         c += P.flat_walls(
-            laws[1], laws[0], mode, vec, sca, ivec, fw, 0.0, 0.0, 0.0, False, True, info, 0,
+            laws[1], laws[0], mode, vec, sca, ivec, fw, 0.0, 0.0, 0.0, False, info, 0,
             (skin, clock, counters),
         )  # fmt: skip
     return c
@@ -74,7 +74,7 @@ def _kicks(nrep, law, mode, st):
 @njit
 def _rebuild(nrep, law, st, skin):
     for _ in range(nrep):
-        rebuild(st[0], st[1], st[2], skin, st, False)
+        rebuild(st[0], st[1], st[2], skin, st, False, False)
 
 
 def _best(fn, args, nrep, repeats):

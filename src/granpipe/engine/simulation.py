@@ -425,6 +425,8 @@ def _pad(arr, width):
 
 
 _FORMAT = 8
+# the rows of sca holding the flat walls' shear histories and their perturbations
+_HISTORY_ROWS = [K.XI_LEFT, K.XI_RIGHT, K.XI_BOTTOM, K.T_XI_LEFT, K.T_XI_RIGHT, K.T_XI_BOTTOM]
 _LOADS = (6, 7, _FORMAT)  # formats a state saved by an earlier engine may have
 # storage that only carries values within one step or list build (pair buffers, the old
 # list while histories are carried over): not saved by ``to_arrays``
@@ -737,10 +739,19 @@ class Simulation:
         )
 
     def _refresh_kernel(self, state, tangent, rebuild, skin):
+        """A refresh: walls placed and list rebuilt (with ``rebuild``), then the forces
+        evaluated with the histories left as they were (the evaluation's truncations are
+        undone: a refresh looks at a state, the next step advances it)."""
         g, laws, wd, fw = self._params()
         s = state._s
+        st = _storage(s)
         mode = P.TANGENT if tangent else P.FORWARD
-        P.refresh_serial(laws, mode, rebuild, g, wd, fw, skin, _storage(s), self.dt, s["info"])
+        P.place_serial(laws, mode, rebuild, g, wd, fw, skin, st, self.dt, s["info"])
+        if s["info"][:, 0].any():
+            return
+        kept = [s["pair_xi"].copy(), s["pair_dxi"].copy(), s["sca"][:, _HISTORY_ROWS].copy()]
+        P.refresh_serial(laws, mode, fw, skin, st, self.dt, s["info"])
+        s["pair_xi"][...], s["pair_dxi"][...], s["sca"][:, _HISTORY_ROWS] = kept
 
     def refresh(self, state) -> None:
         """Re-place the walls, rebuild the neighbour list and re-evaluate the forces.
