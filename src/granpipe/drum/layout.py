@@ -230,11 +230,12 @@ _NOT_SEEDED = (
     ("physics", "max_overlap"),
     ("physics", "friction"),
     ("physics", "k_t"),
+    ("protocol", "pile_sample_s"),
 )
-"""Keys left out of the seed: the bad-state bound (it never changes a trajectory), and the
-friction law, so that replica k of a static-friction point starts from the same placement
-and tangent vector as replica k of its viscous twin (paired replicas: the difference
-between the laws is measured on common random numbers)."""
+"""Keys left out of the seed: the bad-state bound and the pile's sampling (they never change
+a trajectory), and the friction law, so that replica k of a static-friction point starts
+from the same placement and tangent vector as replica k of its viscous twin (paired
+replicas: the difference between the laws is measured on common random numbers)."""
 
 
 def _fill_defaults(instance, schema, root):

@@ -112,7 +112,7 @@ def fits_stage(
     (:func:`summary_stage` gathers them).
     """
     from ..analysis.summary import results_dataset
-    from .fits import PAPER_VALUES, drum_fits, load_units
+    from .fits import PAPER_VALUES, drum_fits, load_pile, load_units
 
     label = str(params.get("label", ""))
     sec = load({k: v for k, v in params.items() if k != "label"})
@@ -127,7 +127,8 @@ def fits_stage(
         f"bootstrap over {n_units} {fcfg['bootstrap_unit']}(s) "
         f"({units['onset'].n_replicas} replicas), {fcfg['bootstrap_resamples']} resamples"
     )
-    results, curves = drum_fits(ens, units, fcfg, label=label)
+    pile = load_pile(runs, fcfg, fcfg["bootstrap_unit"], sec["ensemble"]["exclude_flagged"])
+    results, curves = drum_fits(ens, units, fcfg, label=label, pile=pile)
     for r in results:
         ci = f"[{r.ci_low:.3f}, {r.ci_high:.3f}]" if np.isfinite(r.ci_low) else ""
         paper = PAPER_VALUES.get(r.quantity.removesuffix("_auto")) if not label else None
