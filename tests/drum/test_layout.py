@@ -42,7 +42,7 @@ def test_layout_batches_and_files():
     assert layout.init_files(sec)[2].startswith("init/")
     grown = layout.run_files({"ensemble": {"n_replicas": 9, "batch_size": 2}})
     assert grown[:3] == files  # a larger ensemble only appends batches
-    assert len(layout.figure_files()) == 14  # Figs. 2-8, PNG and PDF
+    assert len(layout.figure_files()) == 16  # Figs. 2-9, PNG and PDF
 
 
 def test_points_vary_one_key_at_a_time_from_the_reference():

@@ -1245,9 +1245,10 @@ def _aligned_analysis(pile: PileRecords, w: str, cfg: Mapping, q: int, hold: int
         lag_res, tilt_res = lag_res.with_ci(boot, 0), tilt_res.with_ci(boot, 1)
     dim = f"tau_{w}"
     lab = "onset of sustained flow" if w == "onset" else "stop of flow"
+    mv, ml, mt = (np.where(keep, m, np.nan) for m in (mv, ml, mt))
     curves = {
         f"aligned_speed_{w}": (dim, mv, {"units": "d_s/t0", "long_name": f"mean V aligned on "
-                               f"each replica's {lab}"}),
+                               f"each replica's {lab} (where enough replicas reach)"}),
         f"aligned_lambda_{w}": (dim, ml, {"units": "1/t0", "long_name": f"mean λ aligned on "
                                 f"each replica's {lab}"}),
         f"aligned_lambda_bar_{w}": (dim, lb, {"units": "1/t0", "long_name": "moving average "

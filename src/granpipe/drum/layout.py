@@ -73,6 +73,7 @@ FIGURES = {
     3: "onset",
     4: "decay",
     5: "lambda_vs_speed",
+    9: "aligned",
 }
 """Figure number -> name for the reference point: ``figures/fig<k>_<name>.{png,pdf}``."""
 

@@ -178,7 +178,7 @@ def figures_stage(
     snapshot: str | os.PathLike,
     outdir: str | os.PathLike,
 ) -> list[Path]:
-    """Figs. 2-5 of the reference point and the comparison figures 6-8 (PNG and PDF).
+    """Figs. 2-5 and 9 of the reference point and the comparison figures 6-8 (PNG and PDF).
 
     ``ensembles`` and ``fits`` hold one file per point, in the order of
     ``params["points"]`` (a list of ``{"name", "period_s", "startup", "friction", "label"}``, the
@@ -211,6 +211,7 @@ def figures_stage(
         6: lambda: figs.fig6_startup(table),
         7: lambda: figs.fig7_lag_vs_rotation(table),
         8: lambda: figs.fig8_friction(table),
+        9: lambda: figs.fig9_aligned(ens, fit),
     }
     paths = []
     for k, name in {**FIGURES, **COMPARISON_FIGURES}.items():
