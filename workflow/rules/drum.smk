@@ -29,7 +29,7 @@ wildcard_constraints:
     drum_n=r"\d+",
     drum_period=r"[0-9.e+]+",
     drum_startup="|".join(re.escape(s) for s in drum_layout.STARTUPS),
-    drum_friction="|".join(re.escape(s) for s in drum_layout.FRICTIONS),
+    drum_friction=drum_layout.FRICTION_WILDCARD,
 
 
 rule drum_init:

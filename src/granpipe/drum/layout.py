@@ -30,10 +30,12 @@ import yaml
 
 from ..config import schema_dir
 from ..errors import ConfigError
-from .model import omega
+from .model import PAPER_PHYSICS, omega
 
 __all__ = [
     "POINT_PATTERN",
+    "FRICTION_WILDCARD",
+    "PAPER_GAMMA_T",
     "STARTUPS",
     "FRICTIONS",
     "point_of",
@@ -87,7 +89,17 @@ COMPARISON_FIGURES = {
 
 
 POINT_PATTERN = "N={drum_n},period={drum_period}s,startup={drum_startup},friction={drum_friction}"
-"""A point's folder name as Snakemake wildcards (:func:`point_name` fills them)."""
+"""A point's folder name as Snakemake wildcards (:func:`point_name` fills them). A point
+whose γ_t is not the paper's carries it after the friction law (``friction=viscous,
+gamma_t=3.44635``), inside the ``drum_friction`` wildcard (:data:`FRICTION_WILDCARD`)."""
+
+PAPER_GAMMA_T = PAPER_PHYSICS["gamma_t"]
+"""The paper's γ_t (Table 1): points with another value name it in their folder."""
+
+FRICTION_WILDCARD = r"(viscous|static)(,gamma_t=[0-9.e+-]+)?"
+"""What the ``drum_friction`` wildcard matches: the law, and γ_t when it is not the
+paper's. Such a value holds "," and "=", which grouped cluster jobs cannot carry: the γ_t
+points (``config/drum_sensitivity.yaml``) run locally."""
 
 STARTUPS = ("paper", "settled")
 FRICTIONS = ("viscous", "static")
@@ -111,9 +123,12 @@ def point_name(point: Mapping) -> str:
     period = ph["period_s"]
     if isinstance(period, list | tuple):
         raise ValueError("point_name needs one point's section (points)")
+    gamma_t = (
+        "" if float(ph["gamma_t"]) == PAPER_GAMMA_T else f",{_point_part('gamma_t', ph['gamma_t'])}"
+    )
     return (
         f"N={n},period={float(period):.4g}s,startup={sec['protocol']['startup']},"
-        f"friction={ph['friction']}"
+        f"friction={ph['friction']}{gamma_t}"
     )
 
 
@@ -152,6 +167,7 @@ def rule_params(section: Mapping) -> dict[str, dict]:
             "period_s": p["physics"]["period_s"],
             "startup": p["protocol"]["startup"],
             "friction": p["physics"]["friction"],
+            "gamma_t": p["physics"]["gamma_t"],
             "label": fits[name]["label"],
         })  # fmt: skip
     return {
@@ -223,7 +239,12 @@ PHYSICS_KEYS = ("physics", "settle", "protocol")
 reuses every batch."""
 
 
-POINT_KEYS = (("physics", "period_s"), ("protocol", "startup"), ("physics", "friction"))
+POINT_KEYS = (
+    ("physics", "period_s"),
+    ("protocol", "startup"),
+    ("physics", "friction"),
+    ("physics", "gamma_t"),
+)
 """Keys that may hold a list: each entry makes its own parameter point (``drum.design``)."""
 
 
@@ -488,6 +509,8 @@ def point_label(point: Mapping, section: Mapping) -> str:
 def _point_part(key: str, value) -> str:
     if key == "period_s":
         return f"period={float(value):.4g}s"
+    if key == "gamma_t":
+        return f"gamma_t={float(value):.6g}"
     return f"{key}={value}"
 
 
@@ -512,7 +535,7 @@ def seed_physics(section: Mapping) -> dict:
     """
     sec = load(section)
     omega(sec["physics"])  # one point only
-    if isinstance(sec["physics"]["friction"], list | tuple):
+    if any(isinstance(sec["physics"][k], list | tuple) for k in ("friction", "gamma_t")):
         raise ValueError("seed_physics needs one point's section (points)")
     out = trajectory_keys(sec)
     for a, b in _NOT_SEEDED:

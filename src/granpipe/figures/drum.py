@@ -206,7 +206,7 @@ def fig5_lambda_vs_speed(ens: xr.Dataset, fits: xr.Dataset) -> plt.Figure:
     return fig
 
 
-_POINT_KEYS = ("period_s", "startup", "friction")
+_POINT_KEYS = ("period_s", "startup", "friction", "gamma_t")
 """The keys that make a parameter point (``granpipe.drum.layout.POINT_KEYS``)."""
 
 
