@@ -30,7 +30,11 @@ tangent vector is set, and t = 0 comes after ``pre_rotation_deg``.
 Then, for both:
 
 4. **Onset window** — ``protocol.onset_window_s`` recorded from t = 0: block means of
-   λ(t) and V(t) over ``protocol.block_s`` (4 ms = 100 steps).
+   λ(t) and V(t) over ``protocol.block_s`` (4 ms = 100 steps), and the pile's state
+   (surface tilt, centroid angle, rigid-rotation speed;
+   :func:`granpipe.drum.measures.pile_state`) at t = 0 and every
+   ``protocol.pile_sample_s`` (0.1 s), between engine calls of that length (the same
+   bits as longer calls).
 5. **Continuous avalanche** — the avalanche *flows* at the end of a chunk if the mean of
    V over the preceding ``protocol.continuous_hold_s`` exceeds
    ``1 + protocol.continuous_excess`` times the speed of rigid rotation with the drum,
@@ -47,7 +51,7 @@ Then, for both:
    out of the ensemble.
 6. **Decay window** — ``protocol.decay_window_s`` recorded from a fresh t = 0: the drum
    still turns for ``protocol.decay_rotating_s`` (5 s), then stops abruptly (wall
-   velocities zero from that step on).
+   velocities zero from that step on); recorded as the onset window.
 
 A replica's random stream is ``replica_rng("drum", physics, replica)`` with ``physics``
 the point's seeding subset (:func:`granpipe.drum.layout.seed_physics`); its first
