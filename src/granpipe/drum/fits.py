@@ -979,6 +979,7 @@ class PileRecords:
     counts : {"onset", "decay"} -> (units, L) replicas per batch (batch units) or None
     tilt_mean : {"onset", "decay"} -> (T,) [degree], ensemble-mean tilt at the stored
         blocks' centres (plain, not aligned)
+    n_replicas : int, replicas kept (flagged ones left out as in the ensemble)
     """
 
     events: dict
