@@ -58,3 +58,60 @@ def synthetic_runs(tmp_path, *, n_batches=3, batch_size=4, vertex=3.0, zero_on=1
                       batch=b)  # fmt: skip
         paths.append(path)
     return paths
+
+
+RIGID = 0.17  # d_s/t0, V of rigid rotation (constant here)
+
+
+def synthetic_pile_runs(tmp_path, flows, *, stops=None, lag_on=3.0, lag_de=1.5, noise=0.3,
+                        batch_size=4, onset_s=40.0, seed=2):  # fmt: skip
+    """Run files with the pile's samples, each replica flowing from its own ``flows[r]``
+    [s] (NaN: never in the window) and, in the decay window, stopping its flow
+    ``stops[r]`` s after the drum's stop (default 1.0 s).
+
+    Onset: V = rigid speed × (0.9 + 2 e^{-t/0.4}), ×1.4 from the flow onset on; λ a line
+    through zero ``lag_on`` s after the flow onset; tilt 1° + 0.35°/s. Decay: V = 1.4 ×
+    rigid until the flow stops, then 0.5 ×; λ a falling line through zero ``lag_de`` s
+    after the flow stop. So the aligned λ̄ crosses zero at ``lag_on`` (``lag_de``) in
+    every replica, and the flow tilt is 1 + 0.35 t_flow.
+    """
+    flows = np.asarray(flows, dtype=np.float64)
+    stops = np.full(len(flows), 1.0) if stops is None else np.asarray(stops, dtype=np.float64)
+    sec = filled({"protocol": {"onset_window_s": onset_s, "decay_window_s": 12.0}})
+    st = steps(sec)
+    rng = np.random.default_rng(seed)
+    n_on, n_de = st.onset // st.block, st.decay // st.block
+    t_on = (np.arange(n_on) + 0.5) * st.block_s
+    t_de = (np.arange(n_de) + 0.5) * st.block_s
+    p_on = np.arange(round(onset_s / 0.1) + 1) * 0.1
+    p_de = np.arange(121) * 0.1
+    d = np.ones(3)
+    paths = []
+    for b in range(-(-len(flows) // batch_size)):
+        recs = []
+        for r in range(b * batch_size, min(len(flows), (b + 1) * batch_size)):
+            f = flows[r] if np.isfinite(flows[r]) else 1e9
+            v_on = RIGID * (0.9 + 2.0 * np.exp(-t_on / 0.4)) * np.where(t_on >= f, 1.4 / 0.9, 1)
+            lam_on = 0.02 * (t_on - f - lag_on) + noise * rng.standard_normal(n_on)
+            s_flow = 5.0 + stops[r]
+            v_de = RIGID * np.where(t_de < s_flow, 1.4, 0.5)
+            lam_de = -0.1 * (t_de - s_flow - lag_de) + noise * rng.standard_normal(n_de)
+            pile_on = np.stack([1.0 + 0.35 * p_on, 0.9 + 0.35 * p_on,
+                                np.full(p_on.size, RIGID)], -1)  # fmt: skip
+            pile_de = np.stack([np.full(p_de.size, 8.0), np.full(p_de.size, 8.0),
+                                np.full(p_de.size, RIGID)], -1)  # fmt: skip
+            recs.append(
+                ReplicaRecord(
+                    replica=r, seed=r, lambda_onset=lam_on, speed_onset=v_on,
+                    lambda_decay=lam_de, speed_decay=v_de, settle_time=3.0,
+                    continuous_time=min(f, onset_s), decay_start=onset_s, wall_time=1.0,
+                    n_steps=10, pile_onset=pile_on, pile_seconds_onset=p_on,
+                    pile_decay=pile_de, pile_seconds_decay=p_de,
+                )
+            )  # fmt: skip
+        ds = batch_dataset(recs, st, d, 1.3846)
+        path = tmp_path / f"batch_{b:04d}.nc"
+        write_dataset(ds, path, config_subset={"synthetic": True}, study="drum", stage="runs",
+                      batch=b)  # fmt: skip
+        paths.append(path)
+    return paths

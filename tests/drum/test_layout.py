@@ -1,6 +1,8 @@
 """The drum config section (seeding subset, checks naming the key, parameter points) and
 the file layout."""
 
+import re
+
 import pytest
 
 from granpipe.drum import layout
@@ -42,7 +44,7 @@ def test_layout_batches_and_files():
     assert layout.init_files(sec)[2].startswith("init/")
     grown = layout.run_files({"ensemble": {"n_replicas": 9, "batch_size": 2}})
     assert grown[:3] == files  # a larger ensemble only appends batches
-    assert len(layout.figure_files()) == 14  # Figs. 2-8, PNG and PDF
+    assert len(layout.figure_files()) == 16  # Figs. 2-9, PNG and PDF
 
 
 def test_points_vary_one_key_at_a_time_from_the_reference():
@@ -112,3 +114,36 @@ def test_load_fills_once_and_hands_down_a_read_only_section(monkeypatch):
         sec["fits"]["onset_vertex_window_s"][0] = 0.0
     with pytest.raises(AttributeError):
         sec.extra = 1
+
+
+def test_gamma_t_points_name_their_value_and_keep_the_papers_names():
+    from granpipe.drum import layout
+
+    sec = {"physics": {"gamma_t": [6.8927, 3.44635, 13.7854]}}
+    pts = points(sec)
+    names = [layout.point_name(p) for p in pts]
+    base = "N=736,period=900s,startup=paper,friction=viscous"
+    assert names == [base, base + ",gamma_t=3.44635", base + ",gamma_t=13.7854"]
+    assert [point_label(p, sec) for p in pts] == ["", "[gamma_t=3.44635]", "[gamma_t=13.7854]"]
+    # each point's folder matches the workflow's pattern, its friction wildcard included
+
+    pattern = layout.POINT_PATTERN.replace("{drum_friction}", layout.FRICTION_WILDCARD)
+    pattern = re.sub(r"\{drum_\w+\}", "[^,=]+", pattern)
+    assert all(re.fullmatch(pattern, n) for n in names)
+    # the paper's gamma_t keeps today's seeds; another one seeds its own replicas
+    assert seed_physics(pts[0]) == seed_physics({})
+    assert seed_physics(pts[1])["physics"]["gamma_t"] == 3.44635
+    with pytest.raises(ValueError, match="one point"):
+        seed_physics(filled(sec))
+    with pytest.raises(ConfigError, match="gamma_t"):
+        filled({"physics": {"gamma_t": [1.0, 1.0]}})
+
+
+def test_pile_sample_must_divide_the_chunk_and_is_not_seeded():
+    from granpipe.drum.protocol import steps
+
+    with pytest.raises(ConfigError, match="pile_sample_s"):
+        steps(filled({"protocol": {"pile_sample_s": 0.3}}))
+    assert seed_physics({"protocol": {"pile_sample_s": 0.25}}) == seed_physics({})
+    st = steps(filled({}))
+    assert st.sample == 25 * st.block and st.chunk == 5 * st.sample  # 0.1 s, 0.5 s

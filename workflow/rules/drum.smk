@@ -29,7 +29,7 @@ wildcard_constraints:
     drum_n=r"\d+",
     drum_period=r"[0-9.e+]+",
     drum_startup="|".join(re.escape(s) for s in drum_layout.STARTUPS),
-    drum_friction="|".join(re.escape(s) for s in drum_layout.FRICTIONS),
+    drum_friction=drum_layout.FRICTION_WILDCARD,
 
 
 rule drum_init:
@@ -143,7 +143,8 @@ rule drum_summary:
 
 
 rule drum_figures:
-    """Figs. 2-5 of the paper for the reference point, and Figs. 6-8 across points."""
+    """Figs. 2-5 of the paper and Fig. 9 (aligned on each pile's avalanche) for the
+    reference point, and Figs. 6-8 across points."""
     input:
         ensembles=[out("drum", drum_layout.ensemble_file(p)) for p in DRUM_POINTS],
         fits=[out("drum", drum_layout.fits_file(p)) for p in DRUM_POINTS],
@@ -185,6 +186,11 @@ rule drum_figures:
             out("drum", "figures", "fig8_friction.png"),
             category="drum",
             caption="../report/drum_fig8.rst",
+        ),
+        fig9=report(
+            out("drum", "figures", "fig9_aligned.png"),
+            category="drum",
+            caption="../report/drum_fig9.rst",
         ),
         pdf=[out("drum", f) for f in drum_layout.figure_files(("pdf",))],
     params:

@@ -74,6 +74,9 @@ __all__ = [
     "sign_change_times",
     "MINIMUM_REASONS",
     "SIGN_CHANGE_REASONS",
+    "PileRecords",
+    "load_pile",
+    "pile_fits",
 ]
 
 WINDOWS = ("onset", "decay")
@@ -540,6 +543,7 @@ def drum_fits(
     units: Mapping[str, Units],
     fits_cfg: Mapping,
     label: str = "",
+    pile: PileRecords | None = None,
 ) -> tuple[list[FitResult], xr.Dataset]:
     """All fitted times of the drum study, with fit errors and bootstrap intervals.
 
@@ -551,6 +555,9 @@ def drum_fits(
     fits_cfg : the ``drum.fits`` section (filled).
     label : str
         Appended to every quantity name (a point's label, e.g. ``"[period=450s]"``).
+    pile : from :func:`load_pile` (the same run files), optional
+        Adds the pile's events and the averages aligned on each replica's own events
+        (:func:`pile_fits`) beside the paper-style rows.
 
     Returns
     -------
@@ -607,6 +614,10 @@ def drum_fits(
     results.extend(_startup_excess(t_on, ens, units["onset"], cfg, q))
     if label:
         results = [dataclasses.replace(r, quantity=r.quantity + label) for r in results]
+    if pile is not None:
+        more, pcurves = pile_fits(pile, ens, cfg, label)
+        results += more
+        curves = curves.merge(pcurves)
     return results, curves
 
 
@@ -947,3 +958,368 @@ def lag(sign_change: FitResult, change_of_state: FitResult | float, quantity: st
         n=sign_change.n,
         method="sign change minus change of state",
     )
+
+
+# ------------------------- the pile's events, and averages aligned on each pile's own
+@dataclass
+class PileRecords:
+    """What the fits take from the run files about the pile (docs/drum.md, "The pile's
+    state and events"): per replica the event times and tilts, and the records aligned on
+    each replica's own sustained-flow onset (onset) and flow stop (decay) as bootstrap
+    units (rows of replicas, or batch means with ``counts``).
+
+    Attributes
+    ----------
+    events : dict of (R,) arrays over every kept replica: ``startup_end``,
+        ``first_burst``, ``flow_onset`` [s after t = 0], ``flow_stop`` [s after the start
+        of the decay window], ``tilt_t0``, ``startup_end_tilt``, ``first_burst_tilt``,
+        ``flow_onset_tilt`` [degree], ``replica`` (index)
+    tau : {"onset", "decay"} (L,) [s], block centre minus the event time
+    aligned : {"onset", "decay"} -> (speed, lambda, tilt), each (units, L)
+    counts : {"onset", "decay"} -> (units, L) replicas per batch (batch units) or None
+    tilt_mean : {"onset", "decay"} -> (T,) [degree], ensemble-mean tilt at the stored
+        blocks' centres (plain, not aligned)
+    n_replicas : int, replicas kept (flagged ones left out as in the ensemble)
+    """
+
+    events: dict
+    tau: dict
+    aligned: dict
+    counts: dict
+    tilt_mean: dict
+    n_replicas: int
+
+
+def _event_args(cfg: Mapping, block_s: float) -> dict:
+    n = max(1, int(round(float(cfg["flow_block_s"]) / block_s)))
+    coarse = n * block_s
+    return dict(
+        block=n,
+        startup_excess=float(cfg["startup_end_excess"]),
+        startup_hold=max(1, int(round(float(cfg["startup_end_hold_s"]) / coarse))),
+        burst_excess=float(cfg["burst_excess"]),
+        flow_excess=float(cfg["flow_excess"]),
+        flow_hold=max(1, int(round(float(cfg["flow_hold_s"]) / coarse))),
+    )
+
+
+def _interp_rows(x_new, x, Y) -> np.ndarray:
+    """Row-wise linear interpolation of (R, S) samples at ``x`` onto ``x_new`` (NaN rows
+    stay NaN; NaN past a row's last finite sample)."""
+    out = np.full((Y.shape[0], len(x_new)), np.nan)
+    for i, y in enumerate(Y):
+        ok = np.isfinite(y)
+        if ok.sum() >= 2:
+            xs = x[ok]
+            out[i] = np.where(x_new <= xs[-1], np.interp(x_new, xs, y[ok]), np.nan)
+    return out
+
+
+def load_pile(
+    paths: Sequence[str | os.PathLike],
+    fits_cfg: Mapping,
+    unit: str = "replica",
+    exclude_flagged: bool = True,
+) -> PileRecords | None:
+    """The pile's events and the aligned records of the run files (None if the run files
+    hold no pile samples). Memory: (replicas or batches) × aligned length × 3 per window.
+    """
+    from ..analysis.ensemble import batch_moments
+    from ..analysis.events import align_on_events
+    from .measures import onset_events, stop_events
+
+    cfg = dict(fits_cfg)
+    before, after = float(cfg["aligned_before_s"]), float(cfg["aligned_after_s"])
+    ev_rows: dict = {}
+    rows: dict = {(w, k): [] for w in WINDOWS for k in range(3)}
+    cnts: dict = {w: [] for w in WINDOWS}
+    tau: dict = {}
+    tilt_sum: dict = {}
+    tilt_n: dict = {}
+    n_rep = 0
+    for path in paths:
+        with xr.open_dataset(path, engine="netcdf4") as ds:
+            if "tilt_onset" not in ds:
+                return None
+            ok = np.flatnonzero(valid_replicas(ds, exclude_flagged))
+            n_rep += len(ok)
+            block_s = float(ds.attrs["dt_s"]) * int(ds.attrs["block_steps"])
+            args = _event_args(cfg, block_s)
+            stop_time = float(ds.attrs["stop_time_s"])
+            out = {"replica": ds["replica"].values[ok]}
+            for w in WINDOWS:
+                t = ds[f"seconds_{w}"].values
+                tp = ds[f"seconds_pile_{w}"].values
+                V = ds[f"speed_{w}"].transpose("replica", f"time_{w}").values[ok]
+                L = ds[f"lambda_{w}"].transpose("replica", f"time_{w}").values[ok]
+                rig = ds[f"rigid_speed_{w}"].values[ok]
+                tilt_p = ds[f"tilt_{w}"].values[ok]
+                tilt = _interp_rows(t, tp, tilt_p)
+                if w == "onset":
+                    ev = onset_events(t, V, tp, rig, **args)
+                    event = ev["flow_onset"]
+                    out.update(ev)
+                    out["tilt_t0"] = tilt_p[:, 0]
+                    for k in ("startup_end", "first_burst", "flow_onset"):
+                        out[f"{k}_tilt"] = np.array([
+                            np.interp(e, tp, y) if np.isfinite(e) else np.nan
+                            for e, y in zip(ev[k], tilt_p, strict=True)
+                        ])  # fmt: skip
+                else:
+                    event = stop_events(t, V, tp, rig, block=args["block"], stop_time=stop_time,
+                                        stop_fraction=float(cfg["stop_fraction"]),
+                                        hold=args["flow_hold"])  # fmt: skip
+                    out["flow_stop"] = event
+                # the event placed at the centre of its first block: tau = centre - event
+                centre = event + 0.5 * block_s
+                for k, Y in enumerate((V, L, tilt)):
+                    tau_w, Z = align_on_events(t, Y, centre, before, after)
+                    if unit == "replica":
+                        rows[(w, k)].extend(list(Z))
+                    elif len(ok):
+                        c, m, _ = batch_moments(Z)
+                        rows[(w, k)].append(m)
+                        if k == 0:
+                            cnts[w].append(c.astype(np.float64))
+                tau[w] = tau_w
+                fin = np.isfinite(tilt)
+                s = np.where(fin, tilt, 0.0).sum(0)
+                n = fin.sum(0)
+                if w in tilt_sum and len(tilt_sum[w]) != len(s):
+                    m_ = max(len(s), len(tilt_sum[w]))
+                    s, n = np.pad(s, (0, m_ - len(s))), np.pad(n, (0, m_ - len(n)))
+                    tilt_sum[w] = np.pad(tilt_sum[w], (0, m_ - len(tilt_sum[w])))
+                    tilt_n[w] = np.pad(tilt_n[w], (0, m_ - len(tilt_n[w])))
+                tilt_sum[w] = tilt_sum.get(w, 0.0) + s
+                tilt_n[w] = tilt_n.get(w, 0) + n
+            for k, v in out.items():
+                ev_rows.setdefault(k, []).append(np.asarray(v))
+    if not ev_rows:
+        return None
+    events = {k: np.concatenate(v) for k, v in ev_rows.items()}
+    aligned = {w: tuple(np.array(rows[(w, k)], dtype=np.float64) for k in range(3))
+               for w in WINDOWS}  # fmt: skip
+    counts = {w: (np.array(cnts[w]) if unit == "batch" else None) for w in WINDOWS}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tilt_mean = {w: np.where(tilt_n[w] > 0, tilt_sum[w] / tilt_n[w], np.nan) for w in WINDOWS}
+    return PileRecords(events, tau, aligned, counts, tilt_mean, n_rep)
+
+
+_EVENT_ROWS = (
+    ("tilt_at_t0", "tilt_t0", "degree", "tilt of the pile's surface at t = 0"),
+    ("startup_end_time", "startup_end", "s", "end of the start-up transient"),
+    ("startup_end_tilt", "startup_end_tilt", "degree", "tilt at the end of the start-up"),
+    ("first_burst_time", "first_burst", "s", "first burst after the start-up"),
+    ("first_burst_tilt", "first_burst_tilt", "degree", "tilt at the first burst"),
+    ("flow_onset_time", "flow_onset", "s", "onset of sustained flow"),
+    ("flow_onset_tilt", "flow_onset_tilt", "degree", "tilt at the onset of sustained flow"),
+    ("decay_flow_stop_time", "flow_stop", "s", "stop of the pile's flow after the drum's stop"),
+)
+
+
+def _event_results(pile: PileRecords, cfg: Mapping, stop: float) -> list[FitResult]:
+    """Means over the replicas that have each event, with a bootstrap interval over
+    replicas; the spread between replicas (standard deviation) of the flow onset's time
+    and tilt; how many replicas reach sustained flow inside the onset window."""
+    out = []
+    ev = pile.events
+    R = len(ev["flow_onset"])
+    kw = dict(n_resamples=int(cfg["bootstrap_resamples"]), level=float(cfg["confidence"]),
+              seed=int(cfg["seed"]))  # fmt: skip
+    for quantity, key, unit, what in _EVENT_ROWS:
+        x = np.asarray(ev[key], dtype=np.float64)
+        if key == "flow_stop":
+            x = x - stop
+            what += " (time after the drum's stop)"
+        has = np.isfinite(x)
+        n = int(has.sum())
+        value = float(np.mean(x[has])) if n else math.nan
+        se = float(np.std(x[has], ddof=1) / math.sqrt(n)) if n > 1 else math.nan
+        res = FitResult(quantity, value, se, unit, n=n,
+                        method=f"mean over the {n} of {R} replicas with the event: {what}; "
+                        "fit error: standard error of the mean")  # fmt: skip
+        if n > 1 and int(cfg["bootstrap_resamples"]) > 0:
+            sq = np.stack([x, x * x], axis=-1)[:, :, np.newaxis]  # (R, 2, 1)
+            boot = bootstrap_replicas(
+                [sq[:, 0], sq[:, 1]],
+                lambda m1, m2: np.stack(
+                    [m1[:, 0], np.sqrt(np.maximum(m2[:, 0] - m1[:, 0] ** 2, 0.0))], -1
+                ),
+                **kw,
+            )
+            res = res.with_ci(boot, 0)
+            if key in ("flow_onset", "flow_onset_tilt"):
+                sd = float(np.std(x[has], ddof=1))
+                out.append(
+                    FitResult(f"{quantity}_sd", sd, math.nan, unit, n=n,
+                              method=f"standard deviation between replicas of the {what}",
+                              ).with_ci(boot, 1)
+                )  # fmt: skip
+        out.append(res)
+    n_flow = int(np.isfinite(ev["flow_onset"]).sum())
+    note = ""
+    if n_flow < 0.9 * R:
+        note = (
+            f"only {n_flow} of {R} replicas reach sustained flow inside the onset window: the "
+            "aligned onset average sees the early ones only (lengthen "
+            "drum.protocol.onset_window_s)"
+        )
+    what = f"inside the onset window ({n_flow} of {R}; the aligned onset rows leave out the rest)"
+    out += [
+        FitResult("flow_onset_reached", n_flow / R if R else math.nan, math.nan, "1", n=R,
+                  method=f"fraction of the replicas that reach sustained flow {what}",
+                  note=note),
+        FitResult("flow_onset_left_out", float(R - n_flow), math.nan, "1", n=R,
+                  method=f"replicas that do not reach sustained flow {what}", note=note),
+    ]  # fmt: skip
+    return out
+
+
+def _aligned_analysis(pile: PileRecords, w: str, cfg: Mapping, q: int, hold: int):
+    """The aligned average of one window, its λ̄ and the lag from the event to λ̄'s first
+    lasting zero crossing (upward at the onset, downward at the decay), with the aligned
+    mean tilt there; bootstrap over the same units."""
+    from ..analysis.ensemble import pooled_batch_mean, replica_mean_sem
+
+    tau = pile.tau[w]
+    Zv, Zl, Zt = pile.aligned[w]
+    c = pile.counts[w]
+    direction = +1 if w == "onset" else -1
+    event = "flow_onset" if w == "onset" else "flow_stop"
+    n_ev = int(np.isfinite(pile.events[event]).sum())
+    if Zv.size == 0 or n_ev == 0:
+        return [], {}
+    if c is None:
+        (mv, _, count), (ml, _, _), (mt, _, _) = (replica_mean_sem(Z) for Z in (Zv, Zl, Zt))
+    else:
+        (mv, _, count), (ml, _, _), (mt, _, _) = (pooled_batch_mean(Z, c) for Z in (Zv, Zl, Zt))
+    count = np.asarray(count, dtype=np.float64)
+    keep = count >= float(cfg["aligned_min_fraction"]) * n_ev
+    valid = np.flatnonzero(keep)
+    search = (float(tau[valid[0]]), float(tau[valid[-1]])) if len(valid) else (np.nan, np.nan)
+
+    def bar(ml_):
+        return moving_average(np.where(keep, ml_, np.nan), q)
+
+    def at(mt_, x):
+        """(b,) values of the (b, L) series ``mt_`` at the (b,) times ``x``."""
+        x = np.atleast_1d(x)
+        mt_ = np.atleast_2d(mt_)
+        i = np.clip(np.searchsorted(tau, x) - 1, 0, len(tau) - 2)
+        i = np.where(np.isfinite(x), i, 0)
+        f = (x - tau[i]) / (tau[i + 1] - tau[i])
+        rows = np.arange(mt_.shape[0])
+        y = mt_[rows, i] * (1 - f) + mt_[rows, i + 1] * f
+        return np.where(np.isfinite(x), y, np.nan)
+
+    lb = bar(ml)
+    lag_value = float(first_crossing(tau, lb, search, direction, hold))
+    tilt_value = float(at(mt, np.array([lag_value]))[0])
+
+    def stat(mv_, ml_, mt_):
+        cr = first_crossing(tau, bar(ml_), search, direction, hold)
+        return np.stack([cr, at(mt_, cr)], axis=-1)
+
+    name = "onset_lag_aligned" if w == "onset" else "decay_lag_aligned"
+    what = ("each replica's own onset of sustained flow" if w == "onset"
+            else "each replica's own stop of flow after the drum's stop")  # fmt: skip
+    held = f"that lasts {cfg['crossing_hold_s']:g} s"
+    lag_res = FitResult(name, lag_value, math.nan, "s", n=n_ev,
+                        method=f"first zero crossing {held} of λ̄ (Eq. 2) of λ averaged over the "
+                        f"replicas aligned on {what}, minus that event (searched where at "
+                        f"least {cfg['aligned_min_fraction']:g} of them contribute)")  # fmt: skip
+    tilt_res = FitResult(
+        f"{name}_tilt",
+        tilt_value,
+        math.nan,
+        "degree",
+        n=n_ev,
+        method="aligned mean tilt of the pile's surface at that crossing",
+    )
+    if int(cfg["bootstrap_resamples"]) > 0 and n_ev > 1:
+        kw = dict(n_resamples=int(cfg["bootstrap_resamples"]), level=float(cfg["confidence"]),
+                  seed=int(cfg["seed"]))  # fmt: skip
+        if c is None:
+            boot = bootstrap_replicas([Zv, Zl, Zt], stat, **kw)
+        else:
+            boot = bootstrap_batches([Zv, Zl, Zt], c, stat, **kw)
+        lag_res, tilt_res = lag_res.with_ci(boot, 0), tilt_res.with_ci(boot, 1)
+    dim = f"tau_{w}"
+    lab = "onset of sustained flow" if w == "onset" else "stop of flow"
+    mv, ml, mt = (np.where(keep, m, np.nan) for m in (mv, ml, mt))
+    curves = {
+        f"aligned_speed_{w}": (dim, mv, {"units": "d_s/t0", "long_name": f"mean V aligned on "
+                               f"each replica's {lab} (where enough replicas reach)"}),
+        f"aligned_lambda_{w}": (dim, ml, {"units": "1/t0", "long_name": f"mean λ aligned on "
+                                f"each replica's {lab}"}),
+        f"aligned_lambda_bar_{w}": (dim, lb, {"units": "1/t0", "long_name": "moving average "
+                                    f"(Eq. 2) of the aligned λ, where at least "
+                                    f"{cfg['aligned_min_fraction']:g} of the replicas reach"}),
+        f"aligned_tilt_{w}": (dim, mt, {"units": "degree", "long_name": f"mean tilt aligned on "
+                              f"each replica's {lab}"}),
+        f"aligned_count_{w}": (dim, count, {"units": "1", "long_name": "replicas contributing "
+                               "to the aligned averages"}),
+    }  # fmt: skip
+    coords = {dim: (dim, tau, {"units": "s", "long_name": f"time after each replica's {lab}"})}
+    return [lag_res, tilt_res], {"curves": curves, "coords": coords}
+
+
+def pile_fits(pile: PileRecords, ens: xr.Dataset, fits_cfg: Mapping,
+              label: str = "") -> tuple[list[FitResult], xr.Dataset]:  # fmt: skip
+    """Rows and curves of the pile's events and of the averages aligned on each replica's
+    own events (docs/drum.md, "Aligned on each pile's avalanche").
+
+    Returns
+    -------
+    results : FitResults ``tilt_at_t0``, ``startup_end_time``/``_tilt``,
+        ``first_burst_time``/``_tilt``, ``flow_onset_time``/``_tilt`` (and ``_sd``, the
+        spread between replicas), ``flow_onset_reached`` (fraction of the replicas),
+        ``decay_flow_stop_time`` (after the drum's stop), ``onset_lag_aligned`` and
+        ``decay_lag_aligned`` [s] with the aligned tilt at λ̄'s crossing (``_tilt``)
+    curves : Dataset with the aligned averages on ``tau_onset``/``tau_decay`` [s], their
+        counts, the ensemble-mean tilt on ``time_onset``/``time_decay`` and the
+        per-replica event times on ``event_replica``
+    """
+    cfg = dict(fits_cfg)
+    block_s = float(ens.attrs["dt_s"]) * int(ens.attrs["block_steps"])
+    q = window_half_width(float(cfg["moving_average_s"]), block_s)
+    hold = _hold_samples(ens, cfg)
+    stop = float(ens.attrs["stop_time_s"])
+    results = _event_results(pile, cfg, stop)
+    out = xr.Dataset()
+    for w in WINDOWS:
+        res, extra = _aligned_analysis(pile, w, cfg, q, hold)
+        results += res
+        if extra:
+            out = out.assign_coords(extra["coords"])
+            for k, v in extra["curves"].items():
+                out[k] = v
+        tdim = f"time_{w}"
+        tm = np.full(ens.sizes[tdim], np.nan)
+        n = min(len(tm), len(pile.tilt_mean[w]))
+        tm[:n] = pile.tilt_mean[w][:n]
+        out[f"tilt_{w}_mean"] = (tdim, tm, {"units": "degree", "long_name": "ensemble-mean "
+                                 f"tilt of the pile's surface, {w} window"})  # fmt: skip
+    ev = pile.events
+    out = out.assign_coords(
+        event_replica=(
+            "event_replica",
+            np.asarray(ev["replica"], np.int64),
+            {"units": "1", "long_name": "replica index"},
+        )
+    )
+    for key, units, what in (
+        ("startup_end", "s", "end of the start-up transient after t = 0"),
+        ("first_burst", "s", "first burst after t = 0"),
+        ("flow_onset", "s", "onset of sustained flow after t = 0"),
+        ("flow_onset_tilt", "degree", "tilt at the onset of sustained flow"),
+        ("flow_stop", "s", "stop of flow after the start of the decay window"),
+    ):
+        out[f"replica_{key}"] = (
+            "event_replica",
+            np.asarray(ev[key], np.float64),
+            {"units": units, "long_name": f"each replica's {what}"},
+        )
+    if label:
+        results = [dataclasses.replace(r, quantity=r.quantity + label) for r in results]
+    return results, out

@@ -32,10 +32,12 @@ import yaml
 from ..config import MAX_SIMULATION_JOBS, check_memory, check_plan, fill_defaults, schema_dir
 from ..errors import ConfigError
 from ..io import config_hash
-from .model import omega
+from .model import PAPER_PHYSICS, omega
 
 __all__ = [
     "POINT_PATTERN",
+    "FRICTION_WILDCARD",
+    "PAPER_GAMMA_T",
     "STARTUPS",
     "FRICTIONS",
     "point_of",
@@ -76,6 +78,7 @@ FIGURES = {
     3: "onset",
     4: "decay",
     5: "lambda_vs_speed",
+    9: "aligned",
 }
 """Figure number -> name for the reference point: ``figures/fig<k>_<name>.{png,pdf}``."""
 
@@ -89,7 +92,17 @@ COMPARISON_FIGURES = {
 
 
 POINT_PATTERN = "N={drum_n},period={drum_period}s,startup={drum_startup},friction={drum_friction}"
-"""A point's folder name as Snakemake wildcards (:func:`point_name` fills them)."""
+"""A point's folder name as Snakemake wildcards (:func:`point_name` fills them). A point
+whose γ_t is not the paper's carries it after the friction law (``friction=viscous,
+gamma_t=3.44635``), inside the ``drum_friction`` wildcard (:data:`FRICTION_WILDCARD`)."""
+
+PAPER_GAMMA_T = PAPER_PHYSICS["gamma_t"]
+"""The paper's γ_t (Table 1): points with another value name it in their folder."""
+
+FRICTION_WILDCARD = r"(viscous|static)(,gamma_t=[0-9.e+-]+)?"
+"""What the ``drum_friction`` wildcard matches: the law, and γ_t when it is not the
+paper's. Such a value holds "," and "=", which grouped cluster jobs cannot carry: the γ_t
+points (``config/drum_sensitivity.yaml``) run locally."""
 
 STARTUPS = ("paper", "settled")
 FRICTIONS = ("viscous", "static")
@@ -113,9 +126,12 @@ def point_name(point: Mapping) -> str:
     period = ph["period_s"]
     if isinstance(period, list | tuple):
         raise ValueError("point_name needs one point's section (points)")
+    gamma_t = (
+        "" if float(ph["gamma_t"]) == PAPER_GAMMA_T else f",{_point_part('gamma_t', ph['gamma_t'])}"
+    )
     return (
         f"N={n},period={float(period):.4g}s,startup={sec['protocol']['startup']},"
-        f"friction={ph['friction']}"
+        f"friction={ph['friction']}{gamma_t}"
     )
 
 
@@ -166,6 +182,7 @@ def rule_params(section: Mapping) -> dict[str, dict]:
             "period_s": p["physics"]["period_s"],
             "startup": p["protocol"]["startup"],
             "friction": p["physics"]["friction"],
+            "gamma_t": p["physics"]["gamma_t"],
             "label": fits[name]["label"],
             "runs_config_hash": runs_hash,
         })  # fmt: skip
@@ -238,7 +255,12 @@ PHYSICS_KEYS = ("physics", "settle", "protocol")
 reuses every batch."""
 
 
-POINT_KEYS = (("physics", "period_s"), ("protocol", "startup"), ("physics", "friction"))
+POINT_KEYS = (
+    ("physics", "period_s"),
+    ("protocol", "startup"),
+    ("physics", "friction"),
+    ("physics", "gamma_t"),
+)
 """Keys that may hold a list: each entry makes its own parameter point (``drum.design``)."""
 
 
@@ -246,11 +268,12 @@ _NOT_SEEDED = (
     ("physics", "max_overlap"),
     ("physics", "friction"),
     ("physics", "k_t"),
+    ("protocol", "pile_sample_s"),
 )
-"""Keys left out of the seed: the bad-state bound (it never changes a trajectory), and the
-friction law, so that replica k of a static-friction point starts from the same placement
-and tangent vector as replica k of its viscous twin (paired replicas: the difference
-between the laws is measured on common random numbers)."""
+"""Keys left out of the seed: the bad-state bound and the pile's sampling (they never change
+a trajectory), and the friction law, so that replica k of a static-friction point starts
+from the same placement and tangent vector as replica k of its viscous twin (paired
+replicas: the difference between the laws is measured on common random numbers)."""
 
 
 @functools.lru_cache(maxsize=4)
@@ -516,6 +539,8 @@ def point_label(point: Mapping, section: Mapping) -> str:
 def _point_part(key: str, value) -> str:
     if key == "period_s":
         return f"period={float(value):.4g}s"
+    if key == "gamma_t":
+        return f"gamma_t={float(value):.6g}"
     return f"{key}={value}"
 
 
@@ -540,7 +565,7 @@ def seed_physics(section: Mapping) -> dict:
     """
     sec = load(section)
     omega(sec["physics"])  # one point only
-    if isinstance(sec["physics"]["friction"], list | tuple):
+    if any(isinstance(sec["physics"][k], list | tuple) for k in ("friction", "gamma_t")):
         raise ValueError("seed_physics needs one point's section (points)")
     out = trajectory_keys(sec)
     for a, b in _NOT_SEEDED:

@@ -2,22 +2,34 @@
 
 A run file ``runs/<point>/batch_<b>.nc`` holds, for each replica of the batch:
 
-==================  =========================  ========  =====================================
-variable            dims                       units     meaning
-==================  =========================  ========  =====================================
-``lambda_onset``    (replica, time_onset)      1/t0      block mean of λ(t), onset window
-``speed_onset``     (replica, time_onset)      d_s/t0    block mean of V(t) = sqrt(Σ|v_i|²)
-``lambda_decay``    (replica, time_decay)      1/t0      same, decay window
-``speed_decay``     (replica, time_decay)      d_s/t0
-``seed``            (replica,)                 1         63-bit seed of the replica's stream
-``settled``         (replica,)                 1         1 if the settling criterion was met
-``settle_time``     (replica,)                 s         time the fall and settling took
-``continuous``      (replica,)                 1         1 if the avalanche became continuous
-``continuous_time`` (replica,)                 s         when it did, after t = 0 (NaN if not)
-``decay_start``     (replica,)                 s         start of the decay window after t = 0
-``wall_time``       (replica,)                 s         wall-clock cost of the replica
-``n_steps``         (replica,)                 1         steps integrated (settling included)
-==================  =========================  ========  =====================================
+========================  ======================  ======  ===================================
+variable                  dims                    units   meaning
+========================  ======================  ======  ===================================
+``lambda_onset``          (replica, time_onset)   1/t0    block mean of λ(t), onset window
+``speed_onset``           (replica, time_onset)   d_s/t0  block mean of V(t) = sqrt(Σ|v_i|²)
+``lambda_decay``          (replica, time_decay)   1/t0    same, decay window
+``speed_decay``           (replica, time_decay)   d_s/t0
+``seed``                  (replica,)              1       63-bit seed of the replica's stream
+``settled``               (replica,)              1       1 if the settling criterion was met
+``settle_time``           (replica,)              s       time the fall and settling took
+``continuous``            (replica,)              1       1 if the avalanche became continuous
+``continuous_time``       (replica,)              s       when it did, after t = 0 (NaN if not)
+``decay_start``           (replica,)              s       start of the decay window after t = 0
+``wall_time``             (replica,)              s       wall-clock cost of the replica
+``n_steps``               (replica,)              1       steps integrated (settling included)
+``tilt_onset``            (replica, pile_onset)   degree  tilt of the pile's surface
+``centroid_angle_onset``  (replica, pile_onset)   degree  angle of the pile's mass centre
+``rigid_speed_onset``     (replica, pile_onset)   d_s/t0  Ω sqrt(Σ r_i²): V of rigid rotation
+``tilt_decay``, ...       (replica, pile_decay)           the same, decay window
+========================  ======================  ======  ===================================
+
+The pile's state is sampled at t = 0 of each window and then every
+``protocol.pile_sample_s`` (0.1 s) and at the window's end: an instantaneous value at
+the end of a stretch of whole blocks, computed between two engine calls (the engine
+records block means only; a run split at more places is bit-identical). Coordinates
+``seconds_pile_onset``/``seconds_pile_decay`` [s] give the sample times. The rigid
+speed uses the turning drum's Ω in both windows (after the stop too: a reference
+speed, not the drum's).
 
 Coordinates: ``time_onset``/``time_decay`` [t0], the centre of each block of
 ``block_steps`` steps after the start of the window (a block mean of λ covers
@@ -30,6 +42,7 @@ The first replica of each batch also stores Fig. 2-style snapshots:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -40,7 +53,73 @@ import xarray as xr
 if TYPE_CHECKING:
     from .protocol import Steps
 
-__all__ = ["ReplicaRecord", "Snapshot", "time_coords", "batch_dataset"]
+__all__ = [
+    "ReplicaRecord",
+    "Snapshot",
+    "time_coords",
+    "batch_dataset",
+    "pile_state",
+    "SURFACE_COLUMN_WIDTH",
+    "SURFACE_FRACTION",
+    "coarse_blocks",
+    "onset_events",
+    "stop_events",
+]
+
+SURFACE_COLUMN_WIDTH = 2.0
+"""Width of the columns whose highest disk marks the pile's surface [d_s]."""
+
+SURFACE_FRACTION = 0.6
+"""Fraction of the pile's width, about its middle, over which the surface is fitted
+(the surface bends where it meets the wall)."""
+
+
+def pile_state(positions, radii, masses=None) -> tuple[float, float]:
+    """Tilt of the pile's free surface and angle of its centroid, in the drum's sense.
+
+    The surface: the mobile disks' horizontal extent is cut, over its middle
+    :data:`SURFACE_FRACTION`, into columns about :data:`SURFACE_COLUMN_WIDTH` wide; the
+    top point (y + r) of the highest disk of each column is one surface point, and a
+    least-squares line through them gives the slope s. The drum turns clockwise
+    (paper Sec. II.2, Fig. 2(b)) and lifts the pile on its left (x < 0), so the tilt is
+    −atan(s): positive when the surface rises toward the lifted side, as the drum's
+    rotation makes it. The centroid angle is that of the mass centre (x_c, y_c) about
+    the drum's axis from straight down, atan2(−x_c, −y_c): positive when the pile sits
+    turned the drum's way. A pile turned rigidly by α with the drum gains α in both.
+
+    Parameters
+    ----------
+    positions : (N, 2) float [d_s], mobile-disk centres, drum axis at the origin
+    radii : (N,) float [d_s]
+    masses : (N,) float [m_s], optional (default: equal)
+
+    Returns
+    -------
+    tilt, centroid_angle : float [degree]; the tilt is NaN with fewer than two columns.
+    """
+    p = np.asarray(positions, dtype=np.float64)
+    r = np.asarray(radii, dtype=np.float64)
+    m = np.ones(len(p)) if masses is None else np.asarray(masses, dtype=np.float64)
+    x, y = p[:, 0], p[:, 1]
+    xc = float(np.dot(m, x) / m.sum())
+    yc = float(np.dot(m, y) / m.sum())
+    centroid = math.degrees(math.atan2(-xc, -yc))
+    lo, hi = float(x.min()), float(x.max())
+    half = 0.5 * SURFACE_FRACTION * (hi - lo)
+    a, b = 0.5 * (lo + hi) - half, 0.5 * (lo + hi) + half
+    n_col = int((b - a) // SURFACE_COLUMN_WIDTH)
+    if n_col < 2:
+        return math.nan, centroid
+    col = np.floor((x - a) / (b - a) * n_col).astype(np.int64)
+    inside = (col >= 0) & (col < n_col)
+    col, top, xs = col[inside], (y + r)[inside], x[inside]
+    order = np.lexsort((top, col))  # by column, highest last
+    last = np.r_[col[order][1:] != col[order][:-1], True]
+    sx, sy = xs[order][last], top[order][last]
+    if len(sx) < 2:
+        return math.nan, centroid
+    slope = np.polyfit(sx, sy, 1)[0]
+    return -math.degrees(math.atan(slope)), centroid
 
 
 @dataclass
@@ -77,6 +156,12 @@ class ReplicaRecord:
     wall_time: float = np.nan
     n_steps: int = 0
     snapshots: list[Snapshot] = field(default_factory=list)
+    pile_onset: np.ndarray | None = None
+    """(S, 3): tilt [degree], centroid angle [degree], rigid speed [d_s/t0] per sample."""
+    pile_seconds_onset: np.ndarray | None = None
+    """(S,) [s] the samples' times after the start of the onset window."""
+    pile_decay: np.ndarray | None = None
+    pile_seconds_decay: np.ndarray | None = None
 
 
 def time_coords(n_blocks: int, steps: Steps, window: str) -> dict:
@@ -144,6 +229,9 @@ def batch_dataset(
             stack(f"speed_{w}", n),
             {"units": "d_s/t0", "long_name": f"{spd}, {w} window"},
         )
+
+    if all(r.pile_onset is not None for r in records):
+        _pile_variables(ds, records)
 
     def col(attr, dtype):
         return np.array([getattr(r, attr) for r in records], dtype=dtype)
@@ -218,6 +306,9 @@ def batch_dataset(
             float(wall_diameter),
             {"units": "d_s", "long_name": "wall-disk diameter"},
         )
+    if "tilt_onset" in ds:
+        ds.attrs.update(surface_column_width=SURFACE_COLUMN_WIDTH,
+                        surface_fraction=SURFACE_FRACTION)  # fmt: skip
     ds.attrs.update(
         dt=steps.dt,
         dt_s=steps.dt_s,
@@ -227,3 +318,132 @@ def batch_dataset(
         pre_rotation_steps=steps.pre_rotation,
     )
     return ds
+
+
+_PILE = (
+    ("tilt", "degree", "tilt of the pile's surface, in the drum's sense (linear fit of the "
+     "column tops; granpipe.drum.measures.pile_state)"),
+    ("centroid_angle", "degree", "angle of the pile's mass centre about the drum's axis from "
+     "straight down, in the drum's sense"),
+    ("rigid_speed", "d_s/t0", "Omega sqrt(sum_i r_i^2): V of the mobile disks turning rigidly "
+     "at the drum's rate"),
+)  # fmt: skip
+
+
+def _pile_variables(ds: xr.Dataset, records: Sequence[ReplicaRecord]) -> None:
+    """The pile's sampled state of every replica, on ``pile_onset``/``pile_decay``."""
+    for w in ("onset", "decay"):
+        arrays = [getattr(r, f"pile_{w}") for r in records]
+        longest = max(range(len(records)), key=lambda i: len(arrays[i]))
+        n = len(arrays[longest])
+        dim = f"pile_{w}"
+        ds.coords[f"seconds_{dim}"] = (
+            dim,
+            np.asarray(getattr(records[longest], f"pile_seconds_{w}"), dtype=np.float64),
+            {"units": "s", "long_name": f"time of the pile's sample after the start of the "
+             f"{w} window"},
+        )  # fmt: skip
+        for k, (name, units, lname) in enumerate(_PILE):
+            out = np.full((len(records), n), np.nan)
+            for i, a in enumerate(arrays):
+                out[i, : len(a)] = np.asarray(a, dtype=np.float64)[:, k]
+            ds[f"{name}_{w}"] = (
+                ("replica", dim),
+                out,
+                {"units": units, "long_name": f"{lname}, {w} window"},
+            )
+
+
+# ---------------------------------------------------------------- the pile's events
+def coarse_blocks(seconds, Y, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Means over ``n`` consecutive stored blocks (a trailing part left out).
+
+    Parameters
+    ----------
+    seconds : (T,) [s], centres of the stored blocks (uniform)
+    Y : (..., T)
+    n : int, stored blocks per coarse block
+
+    Returns
+    -------
+    start : (J,) [s], start time of each coarse block; mean : (..., J)
+    """
+    seconds = np.asarray(seconds, dtype=np.float64)
+    Y = np.asarray(Y, dtype=np.float64)
+    n = max(1, int(n))
+    J = Y.shape[-1] // n
+    half = 0.5 * (seconds[1] - seconds[0]) if len(seconds) > 1 else 0.0
+    start = seconds[: J * n : n] - half
+    mean = Y[..., : J * n].reshape(Y.shape[:-1] + (J, n)).mean(axis=-1)
+    return start, mean
+
+
+def _speed_ratio(seconds, speed, pile_seconds, rigid, n):
+    """(start (J,), V/V_rigid (R, J), block length [s]) over coarse blocks of n stored blocks,
+    the rigid speed interpolated to each coarse block's middle."""
+    start, V = coarse_blocks(seconds, np.atleast_2d(speed), n)
+    length = n * (seconds[1] - seconds[0])
+    rig = np.atleast_2d(np.asarray(rigid, dtype=np.float64))
+    mid = start + 0.5 * length
+    R = np.stack([np.interp(mid, pile_seconds, r) for r in rig])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return start, V / R, length
+
+
+def onset_events(seconds, speed, pile_seconds, rigid, *, block: int, startup_excess: float,
+                 startup_hold: int, burst_excess: float, flow_excess: float,
+                 flow_hold: int) -> dict[str, np.ndarray]:  # fmt: skip
+    """Per replica: the end of the start-up transient, the first burst, sustained flow.
+
+    V (block means) is averaged over coarse blocks of ``block`` stored blocks (0.1 s by
+    default) and compared with the rigid-rotation speed Ω sqrt(Σ r_i²) of the same
+    moment (the paper's continuous avalanche, Sec. II.2, made a per-replica event):
+
+    * **start-up end**: the first coarse block from which V/V_rigid stays at or below
+      1 + ``startup_excess`` for ``startup_hold`` blocks — the fall's motion has died out
+      and the pile turns with the drum (what the paper's V minimum in 1-4 s marks,
+      Sec. III);
+    * **first burst**: the first block at or after the start-up end with V/V_rigid above
+      1 + ``burst_excess``;
+    * **sustained flow**: the first block at or after the start-up end that starts
+      ``flow_hold`` blocks all with V/V_rigid above 1 + ``flow_excess``.
+
+    Parameters
+    ----------
+    seconds : (T,) [s], centres of the stored blocks; speed : (R, T) [d_s/t0]
+    pile_seconds : (S,) [s]; rigid : (R, S) [d_s/t0], the pile's samples
+    block, startup_hold, flow_hold : int, in stored / coarse blocks
+
+    Returns
+    -------
+    ``{"startup_end", "first_burst", "flow_onset"}``: (R,) [s], the start of the event's
+    coarse block after t = 0 of the window; NaN where the record holds none.
+    """
+    from ..analysis.events import first_run
+
+    start, x, _ = _speed_ratio(seconds, speed, pile_seconds, rigid, block)
+    finite = np.isfinite(x)
+    end = first_run(finite & (x <= 1.0 + startup_excess), startup_hold)
+    begin = np.where(end >= 0, end, x.shape[-1])
+    burst = first_run(finite & (x > 1.0 + burst_excess), 1, begin)
+    flow = first_run(finite & (x > 1.0 + flow_excess), flow_hold, begin)
+
+    def at(i):
+        return np.where(i >= 0, start[np.clip(i, 0, len(start) - 1)], np.nan)
+
+    return {"startup_end": at(end), "first_burst": at(burst), "flow_onset": at(flow)}
+
+
+def stop_events(seconds, speed, pile_seconds, rigid, *, block: int, stop_time: float,
+                stop_fraction: float, hold: int) -> np.ndarray:  # fmt: skip
+    """Per replica, when the pile stops flowing after the drum stops (decay window): the
+    first coarse block starting at or after ``stop_time`` [s] from which V stays at or
+    below ``stop_fraction`` times the rigid-rotation speed of the turning drum for
+    ``hold`` blocks. (R,) [s], NaN where the record holds none. Arguments as
+    :func:`onset_events`."""
+    from ..analysis.events import first_run
+
+    start, x, _ = _speed_ratio(seconds, speed, pile_seconds, rigid, block)
+    begin = int(np.searchsorted(start, stop_time - 1e-9))
+    i = first_run(np.isfinite(x) & (x <= stop_fraction), hold, begin)
+    return np.where(i >= 0, start[np.clip(i, 0, len(start) - 1)], np.nan)

@@ -30,7 +30,11 @@ tangent vector is set, and t = 0 comes after ``pre_rotation_deg``.
 Then, for both:
 
 4. **Onset window** — ``protocol.onset_window_s`` recorded from t = 0: block means of
-   λ(t) and V(t) over ``protocol.block_s`` (4 ms = 100 steps).
+   λ(t) and V(t) over ``protocol.block_s`` (4 ms = 100 steps), and the pile's state
+   (surface tilt, centroid angle, rigid-rotation speed;
+   :func:`granpipe.drum.measures.pile_state`) at t = 0 and every
+   ``protocol.pile_sample_s`` (0.1 s), between engine calls of that length (the same
+   bits as longer calls).
 5. **Continuous avalanche** — the avalanche *flows* at the end of a chunk if the mean of
    V over the preceding ``protocol.continuous_hold_s`` exceeds
    ``1 + protocol.continuous_excess`` times the speed of rigid rotation with the drum,
@@ -47,7 +51,7 @@ Then, for both:
    out of the ensemble.
 6. **Decay window** — ``protocol.decay_window_s`` recorded from a fresh t = 0: the drum
    still turns for ``protocol.decay_rotating_s`` (5 s), then stops abruptly (wall
-   velocities zero from that step on).
+   velocities zero from that step on); recorded as the onset window.
 
 A replica's random stream is ``replica_rng("drum", physics, replica)`` with ``physics``
 the point's seeding subset (:func:`granpipe.drum.layout.seed_physics`); its first
@@ -73,7 +77,7 @@ from ..engine import DrumLaw, Simulation, StaticFrictionLaw, WallDisks
 from ..errors import ConfigError, SimulationError
 from ..seeds import batch_replicas, replica_rng, replica_seed
 from .layout import filled, load, point_name, seed_physics, thaw
-from .measures import ReplicaRecord, Snapshot, batch_dataset
+from .measures import ReplicaRecord, Snapshot, batch_dataset, pile_state
 from .model import DrumGeometry, diameters, geometry, masses, omega, wall_positions
 from .preparation import Start, prepare
 
@@ -196,6 +200,13 @@ class DrumModel:
         """Ω sqrt(Σ_i |r_i|²): V of the mobile disks turning rigidly with the drum [d_s/t0]."""
         p = state.positions[: self.n_mobile]
         return float(omega * math.sqrt(float(np.sum(p * p))))
+
+    def pile_sample(self, state, omega: float) -> tuple[float, float, float]:
+        """(tilt [degree], centroid angle [degree], rigid speed [d_s/t0]) of the pile now
+        (:func:`granpipe.drum.measures.pile_state`, :meth:`rigid_speed`)."""
+        n = self.n_mobile
+        tilt, centroid = pile_state(state.positions[:n], 0.5 * self.diameters, self.masses)
+        return tilt, centroid, self.rigid_speed(state, omega)
 
     def rms_speed(self, global_speed):
         """V/sqrt(N): rms speed per mobile disk [d_s/t0]."""
@@ -320,6 +331,26 @@ def run_protocol(
             on_chunk(total, t_origin_s, phase)
         return rec
 
+    def recorded(sim_, n_steps, phase, t_origin_s, pile, seconds):
+        """``advance`` with the tangent vector, in engine calls of at most ``st.sample``
+        steps, the pile sampled after each (the same bits as one call: the engine keeps
+        nothing between calls that a split changes)."""
+        nonlocal total
+        lam, v = [], []
+        done_ = 0
+        while done_ < n_steps:
+            m = min(st.sample, n_steps - done_)
+            rec = sim_.run(state, m, stride=st.block, tangent=True)
+            lam.append(rec.local_lyapunov)
+            v.append(rec.global_speed)
+            done_ += m
+            pile.append(model.pile_sample(state, om))
+            seconds.append((seconds[-1] if seconds else 0.0) + m * st.dt_s)
+        total += n_steps
+        if on_chunk is not None:
+            on_chunk(total, t_origin_s, phase)
+        return np.concatenate(lam), np.concatenate(v)
+
     def align(n_steps, phase, t_end_s):
         done = 0
         while done < n_steps:
@@ -346,13 +377,14 @@ def run_protocol(
             return False
         return bool(np.mean(v[-hold:]) > (1.0 + excess) * model.rigid_speed(state, om))
 
+    pile_on, sec_on = [model.pile_sample(state, om)], [0.0]
     done = 0
     while done < st.onset:
         n = min(st.chunk, st.onset - done)
-        rec = advance(sim, n, st.block, "onset window", (done + n) * st.dt_s)
-        lam_on.append(rec.local_lyapunov)
-        v_on.append(rec.global_speed)
-        speeds.append(rec.global_speed)
+        lam, v = recorded(sim, n, "onset window", (done + n) * st.dt_s, pile_on, sec_on)
+        lam_on.append(lam)
+        v_on.append(v)
+        speeds.append(v)
         done += n
         if t_cont is None and flowing():
             t_cont = done * st.dt_s
@@ -388,15 +420,16 @@ def run_protocol(
     # two chunks stops it exactly at that step, without a jump.
     sim_stopped = model.simulation(0.0)
     lam_de, v_de = [], []
+    pile_de, sec_de = [model.pile_sample(state, om)], [0.0]
     done = 0
     while done < st.decay:
         turning = done < st.decay_rotating
         end = st.decay_rotating if turning else st.decay
         n = min(st.chunk, end - done)
-        rec = advance(sim if turning else sim_stopped, n, st.block, "decay window",
-                      (done + n) * st.dt_s)  # fmt: skip
-        lam_de.append(rec.local_lyapunov)
-        v_de.append(rec.global_speed)
+        lam, v = recorded(sim if turning else sim_stopped, n, "decay window",
+                          (done + n) * st.dt_s, pile_de, sec_de)  # fmt: skip
+        lam_de.append(lam)
+        v_de.append(v)
         done += n
     return ReplicaRecord(
         replica=int(replica),
@@ -413,6 +446,10 @@ def run_protocol(
         wall_time=time.perf_counter() - t_wall,
         n_steps=int(total),
         snapshots=snaps,
+        pile_onset=np.asarray(pile_on),
+        pile_seconds_onset=np.asarray(sec_on),
+        pile_decay=np.asarray(pile_de),
+        pile_seconds_decay=np.asarray(sec_de),
     )
 
 
@@ -725,6 +762,9 @@ class Steps:
         Steps of the decay window (a whole number of blocks).
     chunk : int
         Steps per engine call (a whole number of blocks).
+    sample : int
+        Steps between two samples of the pile's state in the recorded windows
+        (``pile_sample_s`` in whole blocks; ``chunk`` is a whole number of them).
     continuous_hold : int
         Blocks the continuous-avalanche criterion looks back over.
     max_rotation : int
@@ -745,6 +785,7 @@ class Steps:
     decay_rotating: int
     decay: int
     chunk: int
+    sample: int
     continuous_hold: int
     max_rotation: int
     settle_min: int
@@ -780,6 +821,14 @@ def steps(section: Mapping) -> Steps:
     realign = block * round(_n_steps(pr["decay_alignment_s"], dt_s, "") / block)
     align = block * round(_n_steps(pr["tangent_alignment_s"], dt_s, "") / block)
     align = pre if pr["startup"] == "settled" else min(pre, align)
+    chunk = block * blocks(pr["chunk_s"], "drum.protocol.chunk_s")
+    sample = block * blocks(pr["pile_sample_s"], "drum.protocol.pile_sample_s")
+    if chunk % sample:
+        raise ConfigError(
+            f"config key 'drum.protocol.pile_sample_s' = {pr['pile_sample_s']} s must divide "
+            f"'drum.protocol.chunk_s' = {pr['chunk_s']} s into whole blocks of "
+            f"{pr['block_s']} s"
+        )
     return Steps(
         dt=dt,
         dt_s=dt_s,
@@ -790,7 +839,8 @@ def steps(section: Mapping) -> Steps:
         onset=block * blocks(pr["onset_window_s"], "drum.protocol.onset_window_s"),
         decay_rotating=block * round(_n_steps(pr["decay_rotating_s"], dt_s, "") / block),
         decay=block * blocks(pr["decay_window_s"], "drum.protocol.decay_window_s"),
-        chunk=block * blocks(pr["chunk_s"], "drum.protocol.chunk_s"),
+        chunk=chunk,
+        sample=sample,
         continuous_hold=blocks(pr["continuous_hold_s"], "drum.protocol.continuous_hold_s"),
         max_rotation=_n_steps(pr["max_rotation_s"], dt_s, "drum.protocol.max_rotation_s"),
         settle_min=block * round(_n_steps(st["min_time_s"], dt_s, "") / block),
@@ -807,6 +857,7 @@ TINY_PROTOCOL = {
     "continuous_hold_s": 0.2,
     "max_rotation_s": 1.0,
     "chunk_s": 0.2,
+    "pile_sample_s": 0.1,
     "tangent_alignment_s": 0.1,
     "decay_alignment_s": 0.1,
 }

@@ -124,7 +124,7 @@ def fits_stage(
     (:func:`summary_stage` gathers them).
     """
     from ..analysis.summary import results_dataset
-    from .fits import PAPER_VALUES, drum_fits, load_units
+    from .fits import PAPER_VALUES, drum_fits, load_pile, load_units
 
     label = str(params.get("label", ""))
     sec = _section(params)
@@ -142,7 +142,8 @@ def fits_stage(
         f"bootstrap over {n_units} {fcfg['bootstrap_unit']}(s) "
         f"({units['onset'].n_replicas} replicas), {fcfg['bootstrap_resamples']} resamples"
     )
-    results, curves = drum_fits(ens, units, fcfg, label=label)
+    pile = load_pile(runs, fcfg, fcfg["bootstrap_unit"], sec["ensemble"]["exclude_flagged"])
+    results, curves = drum_fits(ens, units, fcfg, label=label, pile=pile)
     for r in results:
         ci = f"[{r.ci_low:.3f}, {r.ci_high:.3f}]" if np.isfinite(r.ci_low) else ""
         paper = PAPER_VALUES.get(r.quantity.removesuffix("_auto")) if not label else None
@@ -198,7 +199,7 @@ def figures_stage(
     snapshot: str | os.PathLike,
     outdir: str | os.PathLike,
 ) -> list[Path]:
-    """Figs. 2-5 of the reference point and the comparison figures 6-8 (PNG and PDF).
+    """Figs. 2-5 and 9 of the reference point and the comparison figures 6-8 (PNG and PDF).
 
     ``ensembles`` and ``fits`` hold one file per point, in the order of
     ``params["points"]`` (a list of ``{"name", "period_s", "startup", "friction", "label"}``, the
@@ -240,6 +241,7 @@ def figures_stage(
         6: lambda: figs.fig6_startup(table),
         7: lambda: figs.fig7_lag_vs_rotation(table),
         8: lambda: figs.fig8_friction(table),
+        9: lambda: figs.fig9_aligned(ens, fit),
     }
     paths = []
     for k, name in {**FIGURES, **COMPARISON_FIGURES}.items():

@@ -9,6 +9,9 @@
 * :func:`fig6_startup` — V(t) and λ̄(t) of each start-up (paper, settled) side by side.
 * :func:`fig7_lag_vs_rotation` — onset and decay lags, with their CIs, against the
   drum's angular speed Ω (beyond the paper).
+* :func:`fig8_friction` — V(t) and λ̄(t) of each friction law.
+* :func:`fig9_aligned` — V and λ̄ averaged over replicas aligned on each pile's own onset
+  of sustained flow (and stop of flow), against t − t_flow and against the tilt.
 
 Inputs are the datasets the pipeline writes: the ensemble file (``reduce_runs``), the
 fits file (fitted numbers plus the curves of ``drum_fits``) and a run file holding a
@@ -33,6 +36,8 @@ __all__ = [
     "fig5_lambda_vs_speed",
     "fig6_startup",
     "fig7_lag_vs_rotation",
+    "fig8_friction",
+    "fig9_aligned",
 ]
 
 LAMBDA_COLOR = "tab:blue"
@@ -201,7 +206,7 @@ def fig5_lambda_vs_speed(ens: xr.Dataset, fits: xr.Dataset) -> plt.Figure:
     return fig
 
 
-_POINT_KEYS = ("period_s", "startup", "friction")
+_POINT_KEYS = ("period_s", "startup", "friction", "gamma_t")
 """The keys that make a parameter point (``granpipe.drum.layout.POINT_KEYS``)."""
 
 
@@ -371,4 +376,112 @@ def fig2_snapshot(run: xr.Dataset) -> plt.Figure:
         ax.set_title(label, fontsize=8)
         cb = fig.colorbar(disks, ax=ax, shrink=0.7, extend="max")
         cb.set_label(f"speed [{run['snapshot_velocity'].attrs.get('units', '')}]")
+    return fig
+
+
+def fig9_aligned(ens: xr.Dataset, fits: xr.Dataset) -> plt.Figure:
+    """V and λ̄ averaged over the replicas aligned on each one's own onset of sustained
+    flow (against t − t_flow, with the replicas contributing at each offset), against the
+    pile's tilt, and for the decay aligned on each pile's own stop of flow; beside them,
+    the paper-style ensemble means (plain, at fixed t), shifted by the mean t_flow.
+
+    ``fits`` is a fits file with the pile's curves (:func:`granpipe.drum.fits.pile_fits`);
+    without them the figure says that the run files hold no pile samples.
+    """
+    from ..analysis.smoothing import moving_average
+
+    fig, axes = plt.subplots(2, 3, figsize=(13.0, 6.8), layout="constrained")
+    if "aligned_speed_onset" not in fits:
+        for ax in axes.flat:
+            ax.set_axis_off()
+        axes[0, 0].text(0.0, 0.5, "the run files hold no samples of the pile's state",
+                        transform=axes[0, 0].transAxes)  # fmt: skip
+        return fig
+    q = int(fits.attrs.get("moving_average_q", 0))
+    t_flow = _value(fits, "flow_onset_time")
+    n_rep = int(ens.attrs.get("n_replicas", 0))
+    label = fits.attrs.get("label", "")
+    tau = fits["tau_onset"].values
+    count = fits["aligned_count_onset"].values
+    Va = moving_average(fits["aligned_speed_onset"].values, max(1, q // 5))
+    lb = fits["aligned_lambda_bar_onset"].values
+    tilt_a = fits["aligned_tilt_onset"].values
+    t = ens["seconds_onset"].values
+    Vp = moving_average(ens["speed_onset_mean"].values, max(1, q // 5))
+    lbp = fits["lambda_bar_onset"].values
+    tilt_p = fits["tilt_onset_mean"].values
+    lag = _value(fits, f"onset_lag_aligned{label}")
+    n_flow = int(np.isfinite(fits["replica_flow_onset"].values).sum())
+
+    ax = axes[0, 0]
+    ax.plot(tau, Va, color=SPEED_COLOR, lw=1.3, label=f"aligned on t_flow ({n_flow} replicas)")
+    ax.plot(t - t_flow, Vp, color=SPEED_COLOR, lw=1.0, ls=":",
+            label=f"ensemble at fixed t ({n_rep}), shifted by mean t_flow")  # fmt: skip
+    ax.set_ylabel("V [d_s/t0]")
+    ax.set_ylim(bottom=0)
+    ax.legend(fontsize=7, loc="upper left")
+    ax.set_title(f"onset: mean t_flow = {_ci_text(fits, 'flow_onset_time')}", fontsize=9)
+    twin = ax.twinx()
+    twin.plot(tau, count, color="0.5", lw=0.8)
+    twin.set_ylabel("replicas contributing", color="0.4")
+    twin.set_ylim(0, max(1.0, float(np.nanmax(count))) * 3.0)
+    ax = axes[1, 0]
+    ax.plot(tau, lb, color=LAMBDA_BAR_COLOR, lw=1.6, label="λ̄, aligned")
+    ax.plot(t - t_flow, lbp, color=LAMBDA_BAR_COLOR, lw=1.0, ls=":", label="λ̄, ensemble")
+    if np.isfinite(lag):
+        ax.axvline(lag, color=FIT_COLOR, lw=1.0, ls="--",
+                   label=f"aligned lag {_ci_text(fits, f'onset_lag_aligned{label}')}")  # fmt: skip
+    ax.axvline(0.0, color="k", lw=0.6)
+    ax.axhline(0.0, color="0.5", lw=0.6)
+    ax.set_xlabel("t − t_flow [s] (each replica's own onset of sustained flow)")
+    ax.set_ylabel("λ̄ [1/t0]")
+    ax.legend(fontsize=7, loc="upper left")
+
+    ax = axes[0, 1]
+    ax.plot(tilt_a, Va, color=SPEED_COLOR, lw=1.3, label="aligned")
+    ax.plot(tilt_p, Vp, color=SPEED_COLOR, lw=1.0, ls=":", label="ensemble at fixed t")
+    tf = _value(fits, "flow_onset_tilt")
+    if np.isfinite(tf):
+        ax.axvline(tf, color="k", lw=0.6, label=f"mean flow tilt {tf:.1f}°")
+    ax.set_ylabel("V [d_s/t0]")
+    ax.set_ylim(bottom=0)
+    ax.legend(fontsize=7, loc="upper left")
+    ax.set_title("against the tilt of the pile's surface", fontsize=9)
+    ax = axes[1, 1]
+    ax.plot(tilt_a, lb, color=LAMBDA_BAR_COLOR, lw=1.6, label="aligned")
+    ax.plot(tilt_p, lbp, color=LAMBDA_BAR_COLOR, lw=1.0, ls=":", label="ensemble at fixed t")
+    ax.axhline(0.0, color="0.5", lw=0.6)
+    ax.set_xlabel("tilt [degree] (mean over the replicas, aligned or at fixed t)")
+    ax.set_ylabel("λ̄ [1/t0]")
+    ax.legend(fontsize=7, loc="upper left")
+
+    if "tau_decay" in fits:
+        tau_d = fits["tau_decay"].values
+        ax = axes[0, 2]
+        ax.plot(tau_d, moving_average(fits["aligned_speed_decay"].values, max(1, q // 5)),
+                color=SPEED_COLOR, lw=1.3)  # fmt: skip
+        ax.set_ylabel("V [d_s/t0]")
+        ax.set_ylim(bottom=0)
+        ax.set_title(f"decay: flow stops {_ci_text(fits, 'decay_flow_stop_time')} after the "
+                     "drum", fontsize=9)  # fmt: skip
+        twin = ax.twinx()
+        twin.plot(tau_d, fits["aligned_count_decay"].values, color="0.5", lw=0.8)
+        twin.set_ylabel("replicas contributing", color="0.4")
+        twin.set_ylim(0, max(1.0, float(np.nanmax(fits["aligned_count_decay"].values))) * 3.0)
+        ax = axes[1, 2]
+        ax.plot(tau_d, fits["aligned_lambda_bar_decay"].values, color=LAMBDA_BAR_COLOR, lw=1.6)
+        lag_d = _value(fits, f"decay_lag_aligned{label}")
+        if np.isfinite(lag_d):
+            ax.axvline(
+                lag_d,
+                color=FIT_COLOR,
+                lw=1.0,
+                ls="--",
+                label=f"aligned lag {_ci_text(fits, f'decay_lag_aligned{label}')}",
+            )
+            ax.legend(fontsize=7, loc="upper right")  # fmt: skip
+        ax.axvline(0.0, color="k", lw=0.6)
+        ax.axhline(0.0, color="0.5", lw=0.6)
+        ax.set_xlabel("t − t_stop [s] (each replica's own stop of flow)")
+        ax.set_ylabel("λ̄ [1/t0]")
     return fig
