@@ -22,14 +22,13 @@ import time
 import numpy as np
 import yaml
 
-from granpipe.drum.layout import filled, point_sections
+from granpipe.drum.layout import filled, point_sections, steps
+from granpipe.drum.model import DrumModel
 from granpipe.drum.preparation import prepare
 from granpipe.drum.protocol import (
-    DrumModel,
     initial_tangent,
     replica_streams,
     run_replica,
-    steps,
 )
 
 PAPER_PAIRS = 70_000
@@ -46,7 +45,7 @@ def main(argv=None):
     points = point_sections(filled(yaml.safe_load(open(args.configfile))["drum"]))
     sec = points[args.point] if args.point else next(iter(points.values()))
     st = steps(sec)
-    model = DrumModel.from_section(sec)
+    model = DrumModel.from_physics(sec["physics"])
     print(f"point {args.point or next(iter(points))}")
 
     sim = model.simulation(model.omega)

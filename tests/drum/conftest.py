@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from granpipe.drum.layout import filled
+from granpipe.drum.layout import filled, steps
 from granpipe.drum.measures import ReplicaRecord, batch_dataset
-from granpipe.drum.protocol import steps, tiny_section
+from granpipe.drum.protocol import tiny_section
 from granpipe.io import write_dataset
 
 

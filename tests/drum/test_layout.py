@@ -6,7 +6,7 @@ import re
 import pytest
 
 from granpipe.drum import layout
-from granpipe.drum.layout import filled, point_label, points, seed_physics
+from granpipe.drum.layout import filled, point_label, points, seed_physics, steps
 from granpipe.errors import ConfigError
 
 
@@ -140,8 +140,6 @@ def test_gamma_t_points_name_their_value_and_keep_the_papers_names():
 
 
 def test_pile_sample_must_divide_the_chunk_and_is_not_seeded():
-    from granpipe.drum.protocol import steps
-
     with pytest.raises(ConfigError, match="pile_sample_s"):
         steps(filled({"protocol": {"pile_sample_s": 0.3}}))
     assert seed_physics({"protocol": {"pile_sample_s": 0.25}}) == seed_physics({})

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from granpipe.drum import model
-from granpipe.drum.layout import filled
+from granpipe.drum.layout import filled, steps
 from granpipe.drum.model import omega
-from granpipe.drum.protocol import steps, tiny_section
+from granpipe.drum.protocol import tiny_section
 
 PAPER = model.PAPER_PHYSICS
 

@@ -5,8 +5,10 @@ import numpy as np
 import pytest
 
 from granpipe.drum import model
+from granpipe.drum.layout import steps
+from granpipe.drum.model import DrumModel
 from granpipe.drum.preparation import fall, min_gap, random_placement
-from granpipe.drum.protocol import DrumModel, steps, tiny_section
+from granpipe.drum.protocol import tiny_section
 
 PAPER = model.PAPER_PHYSICS
 
@@ -38,7 +40,7 @@ def test_a_disk_released_at_the_top_falls_freely_with_no_cap(tiny):
     sec = tiny_section({}, pre_rotation_deg=0.06, tangent_alignment_s=0.0)  # 0.15 s
     sec["physics"].update(n_small=1, n_large=1)  # the second disk rests out of the way
     st = steps(sec)
-    drum = DrumModel.from_section(sec)
+    drum = DrumModel.from_physics(sec["physics"])
     top = drum.geom.inner_radius - 0.6
     start = fall(drum, st, np.array([[0.0, top], [5.0, -5.0]]))
     g = float(sec["physics"]["g"])

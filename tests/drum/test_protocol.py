@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from granpipe.drum.layout import seed_physics
-from granpipe.drum.model import omega
-from granpipe.drum.protocol import DrumModel, run_batch, run_replica, steps, tiny_section
+from granpipe.drum.layout import seed_physics, steps
+from granpipe.drum.model import DrumModel, omega
+from granpipe.drum.protocol import run_batch, run_replica, tiny_section
 from granpipe.drum.stages import init_stage, runs_stage
 from granpipe.errors import SimulationError
 from granpipe.io import config_from_attrs, read_dataset
@@ -61,7 +61,7 @@ def test_run_file_dims_units_and_provenance(tiny, batch2):
     # snapshots of the first replica: mobile disks inside the drum, no deep overlap
     pos = run["snapshot_position"].values
     assert pos.shape == (2, 46, 2)
-    geom = DrumModel.from_section(tiny).geom
+    geom = DrumModel.from_physics(tiny["physics"]).geom
     assert np.hypot(pos[..., 0], pos[..., 1]).max() < geom.inner_radius
     assert init["position"].dims == ("replica", "particle", "xy")
 
@@ -148,7 +148,7 @@ def test_the_drum_has_turned_exactly_one_degree_at_t0(tmp_path):
     init_stage(sec, 0, tmp_path / "init.nc")
     runs_stage(sec, 0, tmp_path / "init.nc", tmp_path / "run.nc")
     run = read_dataset(tmp_path / "run.nc")
-    model = DrumModel.from_section(sec)
+    model = DrumModel.from_physics(sec["physics"])
     st = steps(sec)
     wall0 = run["wall_position"].sel(snapshot="t=0").values
     a0 = np.arctan2(model.walls0[:, 1], model.walls0[:, 0])

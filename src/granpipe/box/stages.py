@@ -488,8 +488,11 @@ def fits_stage(
 
 
 def load_fits(fits_dir: str | Path):
-    """(points, thresholds, temperature, slips) DataFrames from ``fits/*.nc``."""
+    """(points, thresholds, temperature, slips) DataFrames from ``fits/*.nc``; the points
+    carry ``fitted``, whether the fits use them (:func:`~granpipe.box.fits.used_mask`)."""
     import pandas as pd
+
+    from .fits import used_mask
 
     fits_dir = Path(fits_dir)
     phase = read_dataset(fits_dir / "phase_diagram.nc")
@@ -497,6 +500,7 @@ def load_fits(fits_dir: str | Path):
     points = pd.DataFrame({c: phase[c].values for c in pcols})
     for c in ("init", "point", "side_walls", "wall_torque"):
         points[c] = phase[c].values.astype(str)
+    points["fitted"] = used_mask(points)
     tcols = [d for d in phase.data_vars if phase[d].dims == ("threshold",)]
     ths = pd.DataFrame({c.removeprefix("threshold_"): phase[c].values for c in tcols})
     for c in ("init", "criterion", "status", "side_walls", "wall_torque"):

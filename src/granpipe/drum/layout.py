@@ -6,7 +6,7 @@ fills its ``--params`` once (:func:`load`) and hands the result down read-only
 (:class:`FrozenSection`), never filled again. Config keys and units: ``config/README.md``
 (drum section) and ``workflow/schemas/drum.schema.yaml``. Physics is in reduced units
 (d_s, m_s, t0 = sqrt(d_s/g)); protocol and analysis times are in seconds, as the paper
-quotes them (:func:`granpipe.drum.protocol.steps` converts them to whole steps of Δt).
+quotes them (:func:`steps` converts them to whole steps of Δt).
 
 One folder per parameter point (:func:`points`), named after its size, drum period,
 start-up and friction law, e.g. ``N=736,period=900s,startup=paper,friction=viscous``. Replicas
@@ -22,7 +22,9 @@ from __future__ import annotations
 import copy
 import functools
 import itertools
+import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 
@@ -32,9 +34,11 @@ import yaml
 from ..config import MAX_SIMULATION_JOBS, check_memory, check_plan, fill_defaults, schema_dir
 from ..errors import ConfigError
 from ..io import config_hash
-from .model import PAPER_PHYSICS, omega
+from .model import PAPER_PHYSICS, diameters, geometry, omega
 
 __all__ = [
+    "Steps",
+    "steps",
     "POINT_PATTERN",
     "FRICTION_WILDCARD",
     "PAPER_GAMMA_T",
@@ -429,8 +433,6 @@ def check(section: Mapping) -> dict:
             f"config keys 'drum.settle.min_time_s' = {st['min_time_s']} and "
             f"'drum.settle.max_time_s' = {st['max_time_s']}: min must not exceed max"
         )
-    from .protocol import steps
-
     pts = points(sec)
     batches = [
         -(-int(p["ensemble"]["n_replicas"]) // int(p["ensemble"]["batch_size"])) for p in pts
@@ -455,7 +457,6 @@ def _check_drum(sec: Mapping) -> None:
     """The drum holds its disks: the largest fits inside the wall ring with the placement
     gap, and all of them can be placed at random (:data:`PLACEMENT_LIMIT`); one job's
     replicas fit in this machine's memory."""
-    from .model import diameters, geometry
 
     ph, gap = sec["physics"], float(sec["protocol"]["placement_gap"])
     inner = geometry(ph).inner_radius
@@ -571,3 +572,129 @@ def seed_physics(section: Mapping) -> dict:
     for a, b in _NOT_SEEDED:
         out[a].pop(b, None)
     return out
+
+
+# --------------------------------------------------------------------------- steps
+def _n_steps(seconds: float, dt_s: float, what: str) -> int:
+    n = seconds / dt_s
+    k = round(n)
+    if seconds > 0 and k == 0:
+        raise ConfigError(f"{what} = {seconds} s is shorter than one time step ({dt_s} s)")
+    return int(k)
+
+
+@dataclass(frozen=True)
+class Steps:
+    """Protocol durations of a section, in whole steps of Δt.
+
+    Attributes
+    ----------
+    dt : float [t0]
+    dt_s : float [s]
+    block : int
+        Steps per stored block mean (block_s rounded to a whole number of steps).
+    pre_rotation : int
+        Steps of rotation before t = 0: ``pre_rotation_deg`` (1° = 62,500 steps at the
+        paper's Ω and Δt), or ``pre_rotation_s`` when set; for the ``paper`` start-up
+        they start at the placement and include the fall.
+    alignment : int
+        Steps over which the tangent vector evolves before t = 0 (the paper start-up:
+        ``tangent_alignment_s`` in whole blocks, at most ``pre_rotation``; the settled
+        start-up: ``pre_rotation``, the tangent being set when the rotation starts).
+    realign : int
+        With ``tangent_while_waiting: false``: steps from the moment the avalanche became
+        continuous, when that was after the onset window, to the decay window, over which
+        a fresh tangent vector aligns (``decay_alignment_s`` in whole blocks).
+    onset : int
+        Steps of the onset window (a whole number of blocks).
+    decay_rotating : int
+        Steps of the decay window with the drum still turning (a whole number of blocks).
+    decay : int
+        Steps of the decay window (a whole number of blocks).
+    chunk : int
+        Steps per engine call (a whole number of blocks).
+    sample : int
+        Steps between two samples of the pile's state in the recorded windows
+        (``pile_sample_s`` in whole blocks; ``chunk`` is a whole number of them).
+    continuous_hold : int
+        Blocks the continuous-avalanche criterion looks back over.
+    max_rotation : int
+        Steps after t = 0 by which the avalanche must be continuous.
+    settle_min, settle_max : int
+        Steps of settling at least / at most (whole numbers of blocks).
+    settle_hold : int
+        Blocks the settling criterion looks back over.
+    """
+
+    dt: float
+    dt_s: float
+    block: int
+    pre_rotation: int
+    alignment: int
+    realign: int
+    onset: int
+    decay_rotating: int
+    decay: int
+    chunk: int
+    sample: int
+    continuous_hold: int
+    max_rotation: int
+    settle_min: int
+    settle_max: int
+    settle_hold: int
+
+    @property
+    def block_s(self) -> float:
+        """Duration of one stored block [s]."""
+        return self.block * self.dt_s
+
+    @property
+    def block_t0(self) -> float:
+        """Duration of one stored block [t0]."""
+        return self.block * self.dt
+
+
+def steps(section: Mapping) -> Steps:
+    """Convert the protocol times of a section (seconds, degrees) into steps."""
+    sec = load(section)
+    ph, pr, st = sec["physics"], sec["protocol"], sec["settle"]
+    dt = float(ph["dt"])
+    dt_s = dt * float(ph["t0_s"])
+    block = _n_steps(pr["block_s"], dt_s, "drum.protocol.block_s")
+
+    def blocks(seconds, what):  # whole number of blocks, at least one
+        return max(1, math.ceil(_n_steps(seconds, dt_s, what) / block - 1e-9))
+
+    if pr["pre_rotation_s"] is None:
+        pre = int(round(math.radians(pr["pre_rotation_deg"]) / (omega(ph) * dt)))
+    else:
+        pre = _n_steps(pr["pre_rotation_s"], dt_s, "drum.protocol.pre_rotation_s")
+    realign = block * round(_n_steps(pr["decay_alignment_s"], dt_s, "") / block)
+    align = block * round(_n_steps(pr["tangent_alignment_s"], dt_s, "") / block)
+    align = pre if pr["startup"] == "settled" else min(pre, align)
+    chunk = block * blocks(pr["chunk_s"], "drum.protocol.chunk_s")
+    sample = block * blocks(pr["pile_sample_s"], "drum.protocol.pile_sample_s")
+    if chunk % sample:
+        raise ConfigError(
+            f"config key 'drum.protocol.pile_sample_s' = {pr['pile_sample_s']} s must divide "
+            f"'drum.protocol.chunk_s' = {pr['chunk_s']} s into whole blocks of "
+            f"{pr['block_s']} s"
+        )
+    return Steps(
+        dt=dt,
+        dt_s=dt_s,
+        block=block,
+        pre_rotation=pre,
+        alignment=align,
+        realign=realign,
+        onset=block * blocks(pr["onset_window_s"], "drum.protocol.onset_window_s"),
+        decay_rotating=block * round(_n_steps(pr["decay_rotating_s"], dt_s, "") / block),
+        decay=block * blocks(pr["decay_window_s"], "drum.protocol.decay_window_s"),
+        chunk=chunk,
+        sample=sample,
+        continuous_hold=blocks(pr["continuous_hold_s"], "drum.protocol.continuous_hold_s"),
+        max_rotation=_n_steps(pr["max_rotation_s"], dt_s, "drum.protocol.max_rotation_s"),
+        settle_min=block * round(_n_steps(st["min_time_s"], dt_s, "") / block),
+        settle_max=block * blocks(st["max_time_s"], "drum.settle.max_time_s"),
+        settle_hold=blocks(st["hold_s"], "drum.settle.hold_s"),
+    )

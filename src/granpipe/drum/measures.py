@@ -50,8 +50,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 import xarray as xr
 
+from ..analysis.events import first_run
+
 if TYPE_CHECKING:
-    from .protocol import Steps
+    from .layout import Steps
+    from .model import DrumModel
 
 __all__ = [
     "ReplicaRecord",
@@ -59,6 +62,7 @@ __all__ = [
     "time_coords",
     "batch_dataset",
     "pile_state",
+    "pile_sample",
     "SURFACE_COLUMN_WIDTH",
     "SURFACE_FRACTION",
     "coarse_blocks",
@@ -419,7 +423,6 @@ def onset_events(seconds, speed, pile_seconds, rigid, *, block: int, startup_exc
     ``{"startup_end", "first_burst", "flow_onset"}``: (R,) [s], the start of the event's
     coarse block after t = 0 of the window; NaN where the record holds none.
     """
-    from ..analysis.events import first_run
 
     start, x, _ = _speed_ratio(seconds, speed, pile_seconds, rigid, block)
     finite = np.isfinite(x)
@@ -441,9 +444,16 @@ def stop_events(seconds, speed, pile_seconds, rigid, *, block: int, stop_time: f
     below ``stop_fraction`` times the rigid-rotation speed of the turning drum for
     ``hold`` blocks. (R,) [s], NaN where the record holds none. Arguments as
     :func:`onset_events`."""
-    from ..analysis.events import first_run
 
     start, x, _ = _speed_ratio(seconds, speed, pile_seconds, rigid, block)
     begin = int(np.searchsorted(start, stop_time - 1e-9))
     i = first_run(np.isfinite(x) & (x <= stop_fraction), hold, begin)
     return np.where(i >= 0, start[np.clip(i, 0, len(start) - 1)], np.nan)
+
+
+def pile_sample(model: DrumModel, state, omega: float) -> tuple[float, float, float]:
+    """(tilt [degree], centroid angle [degree], rigid speed [d_s/t0]) of the pile in an
+    engine state (:func:`pile_state`, :meth:`~granpipe.drum.model.DrumModel.rigid_speed`)."""
+    n = model.n_mobile
+    tilt, centroid = pile_state(state.positions[:n], 0.5 * model.diameters, model.masses)
+    return tilt, centroid, model.rigid_speed(state, omega)

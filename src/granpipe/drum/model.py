@@ -24,11 +24,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..engine import DrumLaw, Simulation, StaticFrictionLaw, WallDisks
 from ..errors import ConfigError
 
 __all__ = [
     "T0_SECONDS",
     "DrumGeometry",
+    "DrumModel",
     "geometry",
     "diameters",
     "masses",
@@ -169,3 +171,106 @@ def omega(physics: Mapping) -> float:
     if isinstance(period, list | tuple):
         raise ConfigError("drum.physics.period_s is a list: take one point (layout.points)")
     return 2.0 * math.pi * float(physics["t0_s"]) / float(period)
+
+
+@dataclass
+class DrumModel:
+    """Disks, wall and engine of a section (reduced units throughout).
+
+    Attributes
+    ----------
+    physics : the ``drum.physics`` section
+    geom : DrumGeometry
+    diameters : (N,) float64 [d_s]; masses : (N,) float64 [m_s]
+    n_mobile : int
+    walls0 : (n, 2) float64 [d_s], wall-disk centres at rotation angle 0
+    """
+
+    physics: dict
+    geom: DrumGeometry
+    diameters: np.ndarray
+    masses: np.ndarray
+    n_mobile: int
+    walls0: np.ndarray
+
+    @classmethod
+    def from_physics(cls, physics: Mapping) -> DrumModel:
+        """The model of a filled ``drum.physics`` section (a plain copy is kept)."""
+        ph = {k: list(v) if isinstance(v, list | tuple) else v for k, v in physics.items()}
+        geom = geometry(ph)
+        d = diameters(ph)
+        return cls(ph, geom, d, masses(ph), len(d), wall_positions(geom))
+
+    @property
+    def omega(self) -> float:
+        """Angular speed of the drum's clockwise rotation [rad/t0]."""
+        return omega(self.physics)
+
+    @property
+    def static(self) -> bool:
+        """Static friction (``physics.friction: static``): spins and shear histories."""
+        return self.physics["friction"] == "static"
+
+    def simulation(self, omega_clockwise: float) -> Simulation:
+        """The engine with the drum turning clockwise at ``omega_clockwise`` [rad/t0],
+        under the point's friction law: the paper's Eq. (1) (viscous) or the
+        static-friction law (:class:`~granpipe.engine.StaticFrictionLaw`)."""
+        ph = self.physics
+        if self.static:
+            law = StaticFrictionLaw(ph["k_n"], ph["gamma_n"], ph["gamma_t"], ph["mu"],
+                                    k_t=ph["k_t"])  # fmt: skip
+        else:
+            law = DrumLaw(ph["k_n"], ph["gamma_n"], ph["gamma_t"], ph["mu"])
+        # The engine counts angles counter-clockwise: clockwise rotation is omega < 0.
+        walls = WallDisks(centre=(0.0, 0.0), omega=-float(omega_clockwise))
+        return Simulation(
+            law, float(ph["dt"]), gravity=(0.0, -float(ph["g"])), wall_disks=walls,
+            skin=float(ph["skin"]), parallel=False, max_overlap=float(ph["max_overlap"]),
+        )  # fmt: skip
+
+    def new_state(self, sim: Simulation, positions, velocities, t: float = 0.0,
+                  wall_angle: float = 0.0, spins=None, shear=None):  # fmt: skip
+        """An engine state: mobile disks (N, 2) then the wall disks, the drum turned
+        clockwise by ``wall_angle`` [rad] from its position at placement; under static
+        friction with the mobile disks' ``spins`` (N,) [rad/t0] (default at rest) and the
+        shear histories ``shear = (pairs, xi)`` of :meth:`Start.shear` (default none)."""
+        n_w = self.geom.n_wall
+        walls = wall_positions(self.geom, wall_angle) if wall_angle else self.walls0
+        pos = np.concatenate([np.asarray(positions, np.float64), walls])
+        vel = np.concatenate([np.asarray(velocities, np.float64), np.zeros((n_w, 2))])
+        radii = np.concatenate([self.diameters, np.full(n_w, self.geom.d_wall)]) / 2.0
+        masses = np.concatenate([self.masses, np.ones(n_w)])
+        is_wall = np.concatenate([np.zeros(self.n_mobile, bool), np.ones(n_w, bool)])
+        spin = None
+        if self.static:
+            spin = np.zeros(len(pos))
+            if spins is not None:
+                spin[: self.n_mobile] = spins
+        state = sim.new_state(pos, radii, masses, velocities=vel, spins=spin, is_wall=is_wall,
+                              time=t)  # fmt: skip
+        if shear is not None and len(shear[1]):
+            sim.set_shear_history(state, *shear)
+        return state
+
+    def start_arrays(self, state) -> dict:
+        """What the init file keeps of an engine state to continue it: positions and
+        velocities of the mobile disks, and under static friction their spins and the
+        shear histories (:meth:`~granpipe.engine.State.shear_history`)."""
+        n = self.n_mobile
+        out = {
+            "positions": state.positions[:n].copy(),
+            "velocities": state.velocities[:n].copy(),
+        }
+        if self.static:
+            out["spins"] = state.spins[:n].copy()
+            out["shear"] = state.shear_history()
+        return out
+
+    def rigid_speed(self, state, omega: float) -> float:
+        """Ω sqrt(Σ_i |r_i|²): V of the mobile disks turning rigidly with the drum [d_s/t0]."""
+        p = state.positions[: self.n_mobile]
+        return float(omega * math.sqrt(float(np.sum(p * p))))
+
+    def rms_speed(self, global_speed):
+        """V/sqrt(N): rms speed per mobile disk [d_s/t0]."""
+        return np.asarray(global_speed) / math.sqrt(self.n_mobile)

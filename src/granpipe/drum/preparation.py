@@ -27,7 +27,8 @@ import numpy as np
 from .layout import load
 
 if TYPE_CHECKING:
-    from .protocol import DrumModel, Steps
+    from .layout import Steps
+    from .model import DrumModel
 
 __all__ = ["random_placement", "min_gap", "Start", "fall", "settle", "prepare"]
 

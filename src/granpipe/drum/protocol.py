@@ -68,21 +68,18 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
 
-from ..engine import DrumLaw, Simulation, StaticFrictionLaw, WallDisks
-from ..errors import ConfigError, SimulationError
+from ..errors import SimulationError
 from ..seeds import batch_replicas, replica_rng, replica_seed
-from .layout import filled, load, point_name, seed_physics, thaw
-from .measures import ReplicaRecord, Snapshot, batch_dataset, pile_state
-from .model import DrumGeometry, diameters, geometry, masses, omega, wall_positions
+from .layout import Steps, filled, load, point_name, seed_physics, steps
+from .measures import ReplicaRecord, Snapshot, batch_dataset, pile_sample
+from .model import DrumModel, tiny_physics
 from .preparation import Start, prepare
 
 __all__ = [
-    "DrumModel",
     "Progress",
     "initial_tangent",
     "run_protocol",
@@ -90,8 +87,6 @@ __all__ = [
     "run_batch",
     "run_replica",
     "replica_streams",
-    "Steps",
-    "steps",
     "tiny_section",
     "TINY_PROTOCOL",
 ]
@@ -101,116 +96,6 @@ Log = Callable[[str], None]
 
 def _quiet(msg: str) -> None:
     pass
-
-
-# --------------------------------------------------------------------------- the model
-@dataclass
-class DrumModel:
-    """Disks, wall and engine of a section (reduced units throughout).
-
-    Attributes
-    ----------
-    physics : the ``drum.physics`` section
-    geom : DrumGeometry
-    diameters : (N,) float64 [d_s]; masses : (N,) float64 [m_s]
-    n_mobile : int
-    walls0 : (n, 2) float64 [d_s], wall-disk centres at rotation angle 0
-    """
-
-    physics: dict
-    geom: DrumGeometry
-    diameters: np.ndarray
-    masses: np.ndarray
-    n_mobile: int
-    walls0: np.ndarray
-
-    @classmethod
-    def from_section(cls, section: Mapping) -> DrumModel:
-        ph = thaw(load(section)["physics"])
-        geom = geometry(ph)
-        d = diameters(ph)
-        return cls(ph, geom, d, masses(ph), len(d), wall_positions(geom))
-
-    @property
-    def omega(self) -> float:
-        """Angular speed of the drum's clockwise rotation [rad/t0]."""
-        return omega(self.physics)
-
-    @property
-    def static(self) -> bool:
-        """Static friction (``physics.friction: static``): spins and shear histories."""
-        return self.physics["friction"] == "static"
-
-    def simulation(self, omega_clockwise: float) -> Simulation:
-        """The engine with the drum turning clockwise at ``omega_clockwise`` [rad/t0],
-        under the point's friction law: the paper's Eq. (1) (viscous) or the
-        static-friction law (:class:`~granpipe.engine.StaticFrictionLaw`)."""
-        ph = self.physics
-        if self.static:
-            law = StaticFrictionLaw(ph["k_n"], ph["gamma_n"], ph["gamma_t"], ph["mu"],
-                                    k_t=ph["k_t"])  # fmt: skip
-        else:
-            law = DrumLaw(ph["k_n"], ph["gamma_n"], ph["gamma_t"], ph["mu"])
-        # The engine counts angles counter-clockwise: clockwise rotation is omega < 0.
-        walls = WallDisks(centre=(0.0, 0.0), omega=-float(omega_clockwise))
-        return Simulation(
-            law, float(ph["dt"]), gravity=(0.0, -float(ph["g"])), wall_disks=walls,
-            skin=float(ph["skin"]), parallel=False, max_overlap=float(ph["max_overlap"]),
-        )  # fmt: skip
-
-    def new_state(self, sim: Simulation, positions, velocities, t: float = 0.0,
-                  wall_angle: float = 0.0, spins=None, shear=None):  # fmt: skip
-        """An engine state: mobile disks (N, 2) then the wall disks, the drum turned
-        clockwise by ``wall_angle`` [rad] from its position at placement; under static
-        friction with the mobile disks' ``spins`` (N,) [rad/t0] (default at rest) and the
-        shear histories ``shear = (pairs, xi)`` of :meth:`Start.shear` (default none)."""
-        n_w = self.geom.n_wall
-        walls = wall_positions(self.geom, wall_angle) if wall_angle else self.walls0
-        pos = np.concatenate([np.asarray(positions, np.float64), walls])
-        vel = np.concatenate([np.asarray(velocities, np.float64), np.zeros((n_w, 2))])
-        radii = np.concatenate([self.diameters, np.full(n_w, self.geom.d_wall)]) / 2.0
-        masses = np.concatenate([self.masses, np.ones(n_w)])
-        is_wall = np.concatenate([np.zeros(self.n_mobile, bool), np.ones(n_w, bool)])
-        spin = None
-        if self.static:
-            spin = np.zeros(len(pos))
-            if spins is not None:
-                spin[: self.n_mobile] = spins
-        state = sim.new_state(pos, radii, masses, velocities=vel, spins=spin, is_wall=is_wall,
-                              time=t)  # fmt: skip
-        if shear is not None and len(shear[1]):
-            sim.set_shear_history(state, *shear)
-        return state
-
-    def start_arrays(self, state) -> dict:
-        """What the init file keeps of an engine state to continue it: positions and
-        velocities of the mobile disks, and under static friction their spins and the
-        shear histories (:meth:`~granpipe.engine.State.shear_history`)."""
-        n = self.n_mobile
-        out = {
-            "positions": state.positions[:n].copy(),
-            "velocities": state.velocities[:n].copy(),
-        }
-        if self.static:
-            out["spins"] = state.spins[:n].copy()
-            out["shear"] = state.shear_history()
-        return out
-
-    def rigid_speed(self, state, omega: float) -> float:
-        """Ω sqrt(Σ_i |r_i|²): V of the mobile disks turning rigidly with the drum [d_s/t0]."""
-        p = state.positions[: self.n_mobile]
-        return float(omega * math.sqrt(float(np.sum(p * p))))
-
-    def pile_sample(self, state, omega: float) -> tuple[float, float, float]:
-        """(tilt [degree], centroid angle [degree], rigid speed [d_s/t0]) of the pile now
-        (:func:`granpipe.drum.measures.pile_state`, :meth:`rigid_speed`)."""
-        n = self.n_mobile
-        tilt, centroid = pile_state(state.positions[:n], 0.5 * self.diameters, self.masses)
-        return tilt, centroid, self.rigid_speed(state, omega)
-
-    def rms_speed(self, global_speed):
-        """V/sqrt(N): rms speed per mobile disk [d_s/t0]."""
-        return np.asarray(global_speed) / math.sqrt(self.n_mobile)
 
 
 def replica_streams(section: Mapping, replica: int, physics: Mapping | None = None):
@@ -344,7 +229,7 @@ def run_protocol(
             lam.append(rec.local_lyapunov)
             v.append(rec.global_speed)
             done_ += m
-            pile.append(model.pile_sample(state, om))
+            pile.append(pile_sample(model, state, om))
             seconds.append((seconds[-1] if seconds else 0.0) + m * st.dt_s)
         total += n_steps
         if on_chunk is not None:
@@ -377,7 +262,7 @@ def run_protocol(
             return False
         return bool(np.mean(v[-hold:]) > (1.0 + excess) * model.rigid_speed(state, om))
 
-    pile_on, sec_on = [model.pile_sample(state, om)], [0.0]
+    pile_on, sec_on = [pile_sample(model, state, om)], [0.0]
     done = 0
     while done < st.onset:
         n = min(st.chunk, st.onset - done)
@@ -420,7 +305,7 @@ def run_protocol(
     # two chunks stops it exactly at that step, without a jump.
     sim_stopped = model.simulation(0.0)
     lam_de, v_de = [], []
-    pile_de, sec_de = [model.pile_sample(state, om)], [0.0]
+    pile_de, sec_de = [pile_sample(model, state, om)], [0.0]
     done = 0
     while done < st.decay:
         turning = done < st.decay_rotating
@@ -576,7 +461,7 @@ def init_batch(section: Mapping, batch: int, *, threads: int = 1, log: Log = _qu
     sec = load(section)
     st = steps(sec)
     physics = seed_physics(sec)
-    model = DrumModel.from_section(sec)
+    model = DrumModel.from_physics(sec["physics"])
     replicas = list(batch_replicas(int(batch), int(sec["ensemble"]["batch_size"])))
     startup = sec["protocol"]["startup"]
     expected = st.settle_max if startup == "settled" else st.pre_rotation - st.alignment
@@ -644,7 +529,7 @@ def run_batch(section: Mapping, batch: int, init: xr.Dataset, *, threads: int = 
     sec = load(section)
     st = steps(sec)
     physics = seed_physics(sec)
-    model = DrumModel.from_section(sec)
+    model = DrumModel.from_physics(sec["physics"])
     replicas = list(batch_replicas(int(batch), int(sec["ensemble"]["batch_size"])))
     if list(init["replica"].values) != replicas:
         raise ValueError(
@@ -699,7 +584,7 @@ def run_replica(section: Mapping, replica: int, *, log: Log = _quiet,
     """
     sec = load(section)
     st = steps(sec)
-    model = DrumModel.from_section(sec)
+    model = DrumModel.from_physics(sec["physics"])
     place_rng, tangent_rng, seed = replica_streams(sec, replica)
     progress = Progress(1, st.pre_rotation + _expected_steps(st), log)
     try:
@@ -723,132 +608,7 @@ def run_replica(section: Mapping, replica: int, *, log: Log = _quiet,
     return batch_dataset([rec], st, model.diameters, model.geom.d_wall)
 
 
-# ------------------------- protocol times in steps; the tiny drum's protocol
-def _n_steps(seconds: float, dt_s: float, what: str) -> int:
-    n = seconds / dt_s
-    k = round(n)
-    if seconds > 0 and k == 0:
-        raise ConfigError(f"{what} = {seconds} s is shorter than one time step ({dt_s} s)")
-    return int(k)
-
-
-@dataclass(frozen=True)
-class Steps:
-    """Protocol durations of a section, in whole steps of Δt.
-
-    Attributes
-    ----------
-    dt : float [t0]
-    dt_s : float [s]
-    block : int
-        Steps per stored block mean (block_s rounded to a whole number of steps).
-    pre_rotation : int
-        Steps of rotation before t = 0: ``pre_rotation_deg`` (1° = 62,500 steps at the
-        paper's Ω and Δt), or ``pre_rotation_s`` when set; for the ``paper`` start-up
-        they start at the placement and include the fall.
-    alignment : int
-        Steps over which the tangent vector evolves before t = 0 (the paper start-up:
-        ``tangent_alignment_s`` in whole blocks, at most ``pre_rotation``; the settled
-        start-up: ``pre_rotation``, the tangent being set when the rotation starts).
-    realign : int
-        With ``tangent_while_waiting: false``: steps from the moment the avalanche became
-        continuous, when that was after the onset window, to the decay window, over which
-        a fresh tangent vector aligns (``decay_alignment_s`` in whole blocks).
-    onset : int
-        Steps of the onset window (a whole number of blocks).
-    decay_rotating : int
-        Steps of the decay window with the drum still turning (a whole number of blocks).
-    decay : int
-        Steps of the decay window (a whole number of blocks).
-    chunk : int
-        Steps per engine call (a whole number of blocks).
-    sample : int
-        Steps between two samples of the pile's state in the recorded windows
-        (``pile_sample_s`` in whole blocks; ``chunk`` is a whole number of them).
-    continuous_hold : int
-        Blocks the continuous-avalanche criterion looks back over.
-    max_rotation : int
-        Steps after t = 0 by which the avalanche must be continuous.
-    settle_min, settle_max : int
-        Steps of settling at least / at most (whole numbers of blocks).
-    settle_hold : int
-        Blocks the settling criterion looks back over.
-    """
-
-    dt: float
-    dt_s: float
-    block: int
-    pre_rotation: int
-    alignment: int
-    realign: int
-    onset: int
-    decay_rotating: int
-    decay: int
-    chunk: int
-    sample: int
-    continuous_hold: int
-    max_rotation: int
-    settle_min: int
-    settle_max: int
-    settle_hold: int
-
-    @property
-    def block_s(self) -> float:
-        """Duration of one stored block [s]."""
-        return self.block * self.dt_s
-
-    @property
-    def block_t0(self) -> float:
-        """Duration of one stored block [t0]."""
-        return self.block * self.dt
-
-
-def steps(section: Mapping) -> Steps:
-    """Convert the protocol times of a section (seconds, degrees) into steps."""
-    sec = load(section)
-    ph, pr, st = sec["physics"], sec["protocol"], sec["settle"]
-    dt = float(ph["dt"])
-    dt_s = dt * float(ph["t0_s"])
-    block = _n_steps(pr["block_s"], dt_s, "drum.protocol.block_s")
-
-    def blocks(seconds, what):  # whole number of blocks, at least one
-        return max(1, math.ceil(_n_steps(seconds, dt_s, what) / block - 1e-9))
-
-    if pr["pre_rotation_s"] is None:
-        pre = int(round(math.radians(pr["pre_rotation_deg"]) / (omega(ph) * dt)))
-    else:
-        pre = _n_steps(pr["pre_rotation_s"], dt_s, "drum.protocol.pre_rotation_s")
-    realign = block * round(_n_steps(pr["decay_alignment_s"], dt_s, "") / block)
-    align = block * round(_n_steps(pr["tangent_alignment_s"], dt_s, "") / block)
-    align = pre if pr["startup"] == "settled" else min(pre, align)
-    chunk = block * blocks(pr["chunk_s"], "drum.protocol.chunk_s")
-    sample = block * blocks(pr["pile_sample_s"], "drum.protocol.pile_sample_s")
-    if chunk % sample:
-        raise ConfigError(
-            f"config key 'drum.protocol.pile_sample_s' = {pr['pile_sample_s']} s must divide "
-            f"'drum.protocol.chunk_s' = {pr['chunk_s']} s into whole blocks of "
-            f"{pr['block_s']} s"
-        )
-    return Steps(
-        dt=dt,
-        dt_s=dt_s,
-        block=block,
-        pre_rotation=pre,
-        alignment=align,
-        realign=realign,
-        onset=block * blocks(pr["onset_window_s"], "drum.protocol.onset_window_s"),
-        decay_rotating=block * round(_n_steps(pr["decay_rotating_s"], dt_s, "") / block),
-        decay=block * blocks(pr["decay_window_s"], "drum.protocol.decay_window_s"),
-        chunk=chunk,
-        sample=sample,
-        continuous_hold=blocks(pr["continuous_hold_s"], "drum.protocol.continuous_hold_s"),
-        max_rotation=_n_steps(pr["max_rotation_s"], dt_s, "drum.protocol.max_rotation_s"),
-        settle_min=block * round(_n_steps(st["min_time_s"], dt_s, "") / block),
-        settle_max=block * blocks(st["max_time_s"], "drum.settle.max_time_s"),
-        settle_hold=blocks(st["hold_s"], "drum.settle.hold_s"),
-    )
-
-
+# --------------------------------------------------------------- the tiny drum's protocol
 TINY_PROTOCOL = {
     "pre_rotation_deg": 0.2,
     "onset_window_s": 0.6,
@@ -875,7 +635,6 @@ def tiny_section(section: Mapping | None = None, n_wall: int = 40, **protocol) -
     shortened (:data:`TINY_PROTOCOL`, :data:`TINY_SETTLE`; ``protocol`` overrides
     keys) so that one replica takes about a second.
     """
-    from .model import tiny_physics
 
     sec = filled(section)
     sec["physics"] = tiny_physics(n_wall, sec["physics"])

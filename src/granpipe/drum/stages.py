@@ -207,6 +207,7 @@ def figures_stage(
     """
     from ..figures import drum as figs
     from ..figures import save_figure
+    from .fits import PAPER_VALUES
     from .layout import COMPARISON_FIGURES, FIGURES
 
     sec = load({"figures": params["figures"]})
@@ -239,7 +240,7 @@ def figures_stage(
         4: lambda: figs.fig4_decay(ens, fit),
         5: lambda: figs.fig5_lambda_vs_speed(ens, fit),
         6: lambda: figs.fig6_startup(table),
-        7: lambda: figs.fig7_lag_vs_rotation(table),
+        7: lambda: figs.fig7_lag_vs_rotation(table, PAPER_VALUES),
         8: lambda: figs.fig8_friction(table),
         9: lambda: figs.fig9_aligned(ens, fit),
     }

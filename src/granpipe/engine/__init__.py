@@ -14,8 +14,7 @@ Objects
     spin, damping not scaled by mass. ``.contact_time(m_eff)``, ``.restitution(m_eff)``.
 ``BoxLaw(kappa_n, kappa_t, gamma_n, gamma_t, mu, mu_wall=None, mu_side=None)``
     Box paper App. A: m_eff-scaled damping, tangential spring with history truncated
-    at Coulomb, spin with ``I = m sigma²/8``. ``mu_side = 0`` gives frictionless side
-    walls.
+    at Coulomb, spin with ``I = m sigma²/8``; ``mu_side = 0``: frictionless side walls.
 ``StaticFrictionLaw(k_n, gamma_n, gamma_t, mu, k_t=None)``
     The drum's normal law with spin (``I = m d²/8``) and a Cundall–Strack tangential
     spring truncated at Coulomb, ``k_t = k_n/3`` by default (docs/drum.md, "Static
@@ -80,9 +79,8 @@ Conventions
 * Threads: ``Simulation(parallel=True)`` runs an ensemble's replicas in threads, at
   most ``numba.get_num_threads()``; a State runs serially in the calling thread,
   without the GIL, so states may also be advanced side by side from Python threads.
-* Performance: the pair forces run as gather -> contact law (vectorised) -> scatter
-  over a flat pair list, and the law only on touching pairs when fewer than half of the
-  listed pairs touch; figures in docs/engine_performance.md (``benchmarks/engine.py``).
+* Performance: gather -> the law's rows (vectorised) -> scatter over a flat pair list,
+  compacted to the touching pairs when fewer than half touch (docs/engine_performance.md).
 
 Worked example
 --------------

@@ -32,6 +32,8 @@ import pandas as pd  # noqa: E402
 from matplotlib.collections import EllipseCollection  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
+from ..analysis.regression import zero_count_upper_bound  # noqa: E402
+
 __all__ = [
     "ORDER_COLORS",
     "fig1_snapshots",
@@ -177,17 +179,14 @@ def segmented_curve(x_log: np.ndarray, intercept: float, slopes, breakpoints_log
 
 
 def _split_broken(g: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(points used by the fits, crystal points left out because their crystal broke)."""
-    from ..box.fits import used_mask
-
-    used = used_mask(g)
+    """(points used by the fits, crystal points left out because their crystal broke),
+    by the points table's ``fitted`` column."""
+    used = g["fitted"].astype(bool)
     return g[used], g[~used]
 
 
 def _broken_note(ax, points: pd.DataFrame) -> None:
-    from ..box.fits import used_mask
-
-    if not used_mask(points).all():
+    if not points["fitted"].astype(bool).all():
         ax.text(0.98, 0.02, "×: crystal broken before measurement\n(not fitted)",
                 transform=ax.transAxes, ha="right", va="bottom", fontsize=7)  # fmt: skip
 
@@ -258,8 +257,6 @@ def fig5_slip_probability(
     Points without slips are drawn as downward triangles at the exact binomial upper
     bound (``bound_cl``) on p_s.
     """
-    from ..analysis.regression import zero_count_upper_bound
-
     inits = [i for i in ("random", "crystal") if i in set(points["init"])]
     fig, axes = _panels(inits)
     colors = _nl_colors(points["N_l"])

@@ -20,6 +20,8 @@ snapshot. :func:`save` writes ``fig<k>_<name>.png`` and ``.pdf`` atomically.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -28,6 +30,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
 from matplotlib.collections import EllipseCollection  # noqa: E402
+
+from ..analysis.smoothing import moving_average  # noqa: E402
 
 __all__ = [
     "fig2_snapshot",
@@ -190,8 +194,6 @@ def fig5_lambda_vs_speed(ens: xr.Dataset, fits: xr.Dataset) -> plt.Figure:
 
     V is smoothed with the same moving average as λ̄ so both curves have one resolution.
     """
-    from ..analysis.smoothing import moving_average
-
     q = int(fits.attrs.get("moving_average_q", 0))
     fig, ax = plt.subplots(figsize=(5.5, 4.2), layout="constrained")
     for w, color in (("onset", "tab:red"), ("decay", "tab:blue")):
@@ -221,8 +223,6 @@ def _same(points: dict, key: str) -> dict:
 def _compare(points: dict, key: str, colors: dict, title: str) -> plt.Figure:
     """V(t) and λ̄(t) of the onset and decay windows of the points that differ from the
     reference point in ``key`` only (one curve per value of ``key``)."""
-    from ..analysis.smoothing import moving_average
-
     chosen = _same(points, key)
     fig, axes = plt.subplots(2, 2, figsize=(10.0, 6.4), layout="constrained", sharex="col")
     for p in chosen.values():
@@ -270,23 +270,21 @@ def fig8_friction(points: dict) -> plt.Figure:
                     "friction")  # fmt: skip
 
 
-def fig7_lag_vs_rotation(points: dict, undetermined_width: float = 20.0) -> plt.Figure:
+def fig7_lag_vs_rotation(
+    points: dict, paper: Mapping[str, float], undetermined_width: float = 20.0
+) -> plt.Figure:
     """Onset and decay lags (sign change of λ minus change of avalanche state) against the
-    drum's angular speed Ω, with their bootstrap intervals; the paper's lags at 900 s.
+    drum's angular speed Ω, with their bootstrap intervals; the paper's lags at 900 s
+    (``paper["onset_lag"]``, ``paper["decay_lag"]`` [s]).
 
     A lag whose interval is wider than ``undetermined_width`` [s], or that has no value
     (no minimum, no lasting sign change), is not a measurement: it is marked at the
     bottom of the axis as undetermined instead of stretching the axis.
     """
-    from ..drum.fits import PAPER_VALUES
-
     chosen = _same(points, "period_s")
     fig, ax = plt.subplots(figsize=(6.4, 4.6), layout="constrained")
     y_lo, y_hi = -5.0, 30.0
-    for kind, color, paper, dx in (
-        ("onset_lag", "tab:red", PAPER_VALUES["onset_lag"], 0.98),
-        ("decay_lag", "tab:blue", PAPER_VALUES["decay_lag"], 1.02),
-    ):
+    for kind, color, dx in (("onset_lag", "tab:red", 0.98), ("decay_lag", "tab:blue", 1.02)):
         for suffix, mfc in (("_auto", color), ("", "white")):
             window = "automatic windows" if suffix else "paper's windows"
             label = f"{kind.split('_')[0]}, {window}"
@@ -303,7 +301,7 @@ def fig7_lag_vs_rotation(points: dict, undetermined_width: float = 20.0) -> plt.
                 ax.errorbar([om], [v], yerr=[[v - lo], [hi - v]], fmt="o", color=color,
                             mfc=mfc, capsize=3, label=label)  # fmt: skip
                 label = None
-        ax.plot([2.0 * np.pi / 900.0], [paper], "*", color=color, ms=12, mec="k",
+        ax.plot([2.0 * np.pi / 900.0], [paper[kind]], "*", color=color, ms=12, mec="k",
                 label=f"{kind.split('_')[0]}, paper (900 s)")  # fmt: skip
     ax.plot([], [], "x", color="0.3", label="undetermined (no value, or CI > "
             f"{undetermined_width:g} s)")  # fmt: skip
@@ -388,8 +386,6 @@ def fig9_aligned(ens: xr.Dataset, fits: xr.Dataset) -> plt.Figure:
     ``fits`` is a fits file with the pile's curves (:func:`granpipe.drum.fits.pile_fits`);
     without them the figure says that the run files hold no pile samples.
     """
-    from ..analysis.smoothing import moving_average
-
     fig, axes = plt.subplots(2, 3, figsize=(13.0, 6.8), layout="constrained")
     if "aligned_speed_onset" not in fits:
         for ax in axes.flat:
