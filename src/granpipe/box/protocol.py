@@ -47,30 +47,16 @@ __all__ = [
     "PartResult",
     "run_part",
     "state_arrays",
-    "restore_state",
     "Progress",
 ]
 
 
 # ----------------------------------------------------------------- engine state I/O
-_POS = 0  # row of the positions in the engine's per-disk vector storage (kernels.POS)
 
 
 def state_arrays(state) -> dict[str, np.ndarray]:
     """Everything the engine needs to continue ``state`` exactly (``State.to_arrays``)."""
     return state.to_arrays()
-
-
-def restore_state(sim, positions: np.ndarray, arrays: Mapping[str, np.ndarray]):
-    """The engine state saved by :func:`state_arrays` (``State.from_arrays``), checked
-    against ``positions`` (the saved per-disk positions) so a mismatched file fails loudly."""
-    state = State.from_arrays(dict(arrays))
-    if state.positions.shape != positions.shape:
-        raise ValueError(
-            f"saved engine state holds {state.positions.shape[0]} disks, expected "
-            f"{positions.shape[0]}"
-        )
-    return state
 
 
 # ----------------------------------------------------------------------- progress
@@ -211,9 +197,10 @@ def run_part(
     else:
         if previous_state is None or tracers is None:
             raise ValueError(f"part {part} needs the previous part's state and tracers")
-        saved_positions = np.asarray(previous_state["vec"])[0, _POS]
-        n = saved_positions.shape[0]
-        state = restore_state(sim, saved_positions, previous_state)
+        state = State.from_arrays(dict(previous_state))
+        n = state.positions.shape[0]
+        if len(tracers) and int(np.max(tracers)) >= n:
+            raise ValueError(f"the previous part's state holds {n} disks, fewer than its tracers")
         expected = (n_tr + periods[0]) * steps_per + offset_steps
         have = round(state.time / dt)
         if have != expected:
