@@ -394,6 +394,29 @@ def law_rows(law, mode, buf, ssum, slim, smeff, sdiff, xis, dxis, touch, flip, m
 
 
 @njit
+def _start_sums(law, mode, vec, sca):
+    """Set the forces to gravity and zero the torques and perturbations (the spin rows
+    only with spin, the perturbations only with tangent); (forces, their perturbations,
+    torques, theirs) as flat views."""
+    tangent = tangent_on(mode)
+    f = _flat(vec[L.FRC])
+    mg = _flat(vec[L.MG])
+    tf = _flat(vec[L.T_FRC])
+    trq = sca[L.TORQUE]
+    tt = sca[L.T_TORQUE]
+    for k in range(f.shape[0]):
+        f[k] = mg[k]
+        if tangent:
+            tf[k] = 0.0
+    if law_has_spin(law):
+        for i in range(trq.shape[0]):
+            trq[i] = 0.0
+            if tangent:
+                tt[i] = 0.0
+    return f, tf, trq, tt
+
+
+@njit
 def scatter(law, mode, vec, sca, pair_start, pair_ij, buf):
     """Add the pair forces (torques, perturbations) of the whole list to the disks, over
     gravity.
@@ -405,20 +428,7 @@ def scatter(law, mode, vec, sca, pair_start, pair_ij, buf):
     """
     spin = law_has_spin(law)
     tangent = tangent_on(mode)
-    f = _flat(vec[L.FRC])
-    mg = _flat(vec[L.MG])
-    tf = _flat(vec[L.T_FRC])
-    trq = sca[L.TORQUE]
-    tt = sca[L.T_TORQUE]
-    for k in range(f.shape[0]):
-        f[k] = mg[k]
-        if tangent:
-            tf[k] = 0.0
-    if spin:
-        for i in range(trq.shape[0]):
-            trq[i] = 0.0
-            if tangent:
-                tt[i] = 0.0
+    f, tf, trq, tt = _start_sums(law, mode, vec, sca)
     n = pair_start.shape[0] - 1
     npairs = pair_start[n]
     if npairs == 0:
@@ -503,21 +513,8 @@ def scatter_compact(law, mode, vec, sca, ivec, pair_ij, buf, pair_xi, pair_dxi, 
     spin = law_has_spin(law)
     history = law_has_history(law)
     tangent = tangent_on(mode)
-    f = _flat(vec[L.FRC])
-    mg = _flat(vec[L.MG])
-    tf = _flat(vec[L.T_FRC])
-    trq = sca[L.TORQUE]
-    tt = sca[L.T_TORQUE]
+    f, tf, trq, tt = _start_sums(law, mode, vec, sca)
     contacts = ivec[L.PAIR_CONTACTS]
-    for k in range(f.shape[0]):
-        f[k] = mg[k]
-        if tangent:
-            tf[k] = 0.0
-    if spin:
-        for i in range(trq.shape[0]):
-            trq[i] = 0.0
-            if tangent:
-                tt[i] = 0.0
     if count:
         for i in range(contacts.shape[0]):
             contacts[i] = 0
