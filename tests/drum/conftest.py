@@ -9,6 +9,14 @@ from granpipe.drum.protocol import tiny_section
 from granpipe.io import write_dataset
 
 
+def _write_batch(recs, st, d, folder, b):
+    """A synthetic run file of batch ``b`` from replica records."""
+    path = folder / f"batch_{b:04d}.nc"
+    write_dataset(batch_dataset(recs, st, d, 1.3846), path, config_subset={"synthetic": True},
+                  study="drum", stage="runs", batch=b)  # fmt: skip
+    return path
+
+
 @pytest.fixture(scope="session")
 def tiny():
     """A tiny drum (40 wall disks, 23 + 23 mobile disks) with short windows, batches of 2."""
@@ -52,11 +60,7 @@ def synthetic_runs(tmp_path, *, n_batches=3, batch_size=4, vertex=3.0, zero_on=1
                     n_steps=10,
                 )
             )
-        ds = batch_dataset(recs, st, d, 1.3846)
-        path = tmp_path / f"batch_{b:04d}.nc"
-        write_dataset(ds, path, config_subset={"synthetic": True}, study="drum", stage="runs",
-                      batch=b)  # fmt: skip
-        paths.append(path)
+        paths.append(_write_batch(recs, st, d, tmp_path, b))
     return paths
 
 
@@ -109,9 +113,5 @@ def synthetic_pile_runs(tmp_path, flows, *, stops=None, lag_on=3.0, lag_de=1.5, 
                     pile_decay=pile_de, pile_seconds_decay=p_de,
                 )
             )  # fmt: skip
-        ds = batch_dataset(recs, st, d, 1.3846)
-        path = tmp_path / f"batch_{b:04d}.nc"
-        write_dataset(ds, path, config_subset={"synthetic": True}, study="drum", stage="runs",
-                      batch=b)  # fmt: skip
-        paths.append(path)
+        paths.append(_write_batch(recs, st, d, tmp_path, b))
     return paths
