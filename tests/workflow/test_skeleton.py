@@ -41,3 +41,36 @@ def test_bad_config_stops_before_any_job_with_key_named(scratch_workflow):
     assert f"'{study}.not_a_key'" in text
     # Nothing ran: no results folder, no job output.
     assert not (scratch_workflow / "results").exists()
+
+
+def test_no_wildcard_value_holds_a_comma():
+    """A cluster job names its jobs to Snakemake as ``rule:key=value,key=value`` (the
+    --target-jobs option), which is split at commas: a wildcard whose value may hold one
+    breaks every job of its rule on SLURM. Each wildcard of the workflow's rules is
+    constrained, and no constraint admits a comma (the drum's γ_t points excepted: they are
+    documented to run locally)."""
+    import re
+    from pathlib import Path
+
+    from snakemake.api import SnakemakeApi
+    from snakemake.settings.types import ConfigSettings, ResourceSettings
+
+    repo = Path(__file__).resolve().parents[2]
+    with SnakemakeApi() as api:
+        workflow = api.workflow(
+            resource_settings=ResourceSettings(),
+            config_settings=ConfigSettings(configfiles=[repo / "config/quick.yaml"]),
+            snakefile=repo / "Snakefile",
+            workdir=repo,
+        )._workflow
+        rules = [r for r in workflow.rules if r.wildcard_names]
+    assert any(r.name == "box_runs" for r in rules)
+    for rule in rules:
+        for name in rule.wildcard_names:
+            pattern = rule.wildcard_constraints.get(name) or workflow.wildcard_constraints.get(name)
+            assert pattern is not None, f"rule {rule.name}: wildcard {name} is not constrained"
+            if name == "drum_friction":
+                pattern = pattern.replace(",gamma_t=", "")
+            assert not re.fullmatch(f"(?:{pattern})", "a,b") and "," not in pattern, (
+                f"rule {rule.name}: wildcard {name} admits a comma ({pattern})"
+            )

@@ -18,23 +18,26 @@ if "box" in config:
         box_nl=r"\d+",
         box_gamma=r"[0-9.]+(e[-+]?[0-9]+)?",
         box_init=r"crystal|random",
-        box_walls=r"mu_w=[0-9.]+(e[-+]?[0-9]+)?,walls=(shaken|still),torque=(lever|none)",
-        box_state_walls=r"mu_w=[0-9.]+(e[-+]?[0-9]+)?,torque=(lever|none)",
+        # one wildcard per key: Snakemake's --target-jobs (how a cluster job names its
+        # jobs) splits wildcards at commas, so no wildcard value may hold one
+        box_mu_w=r"[0-9.]+(e[-+]?[0-9]+)?",
+        box_side=r"shaken|still",
+        box_torque=r"lever|none",
         box_rep=r"\d{4}",
         box_part=r"\d{3}",
 
     rule box_init:
         """Crystal (relaxed lattice) or random (placement, fall, settle) initial state."""
         output:
-            out("box", "init", "N_l={box_nl},init={box_init},{box_state_walls}", "replica_{box_rep}.nc"),
+            out("box", "init", "N_l={box_nl},init={box_init},mu_w={box_mu_w},torque={box_torque}", "replica_{box_rep}.nc"),
         params:
             json=lambda w: as_json(
-                box_layout.init_params(BOX, box_layout.Walls.parse_state(w.box_state_walls))
+                box_layout.init_params(BOX, box_layout.Walls.of_state(w))
             ),
         conda:
             "../envs/granpipe.yaml"
         log:
-            log_path("box", "init", "N_l={box_nl},init={box_init},{box_state_walls}", "replica_{box_rep}.log"),
+            log_path("box", "init", "N_l={box_nl},init={box_init},mu_w={box_mu_w},torque={box_torque}", "replica_{box_rep}.log"),
         threads: 1
         resources:
             runtime=lambda w: box_layout.sim_minutes(BOX, int(w.box_nl), 0),
@@ -58,13 +61,13 @@ if "box" in config:
             out(
                 "box",
                 "runs",
-                "N_l={box_nl},Gamma={box_gamma},init={box_init},{box_walls}",
+                "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_mu_w},walls={box_side},torque={box_torque}",
                 "replica_{box_rep}.part_{box_part}.nc",
             ),
         params:
             json=lambda w: as_json(
                 box_layout.runs_params(
-                    BOX, int(w.box_part), box_layout.Walls.parse(w.box_walls)
+                    BOX, int(w.box_part), box_layout.Walls.of_point(w)
                 )
             ),
             previous=lambda w, input: (
@@ -76,7 +79,7 @@ if "box" in config:
             log_path(
                 "box",
                 "runs",
-                "N_l={box_nl},Gamma={box_gamma},init={box_init},{box_walls}",
+                "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_mu_w},walls={box_side},torque={box_torque}",
                 "replica_{box_rep}.part_{box_part}.log",
             ),
         threads: 1
@@ -101,17 +104,17 @@ if "box" in config:
                     int(w.box_nl),
                     float(w.box_gamma),
                     w.box_init,
-                    box_layout.Walls.parse(w.box_walls),
+                    box_layout.Walls.of_point(w),
                 )
             ],
         output:
-            out("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init},{box_walls}.nc"),
+            out("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_mu_w},walls={box_side},torque={box_torque}.nc"),
         params:
             json=lambda w, output: as_json(box_layout.ensemble_params(BOX, Path(output[0]).stem)),
         conda:
             "../envs/granpipe.yaml"
         log:
-            log_path("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init},{box_walls}.log"),
+            log_path("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_mu_w},walls={box_side},torque={box_torque}.log"),
         threads: 1
         resources:
             runtime=10,

@@ -169,13 +169,17 @@ class Walls(NamedTuple):
         return cls(float(m.group(1)), m.group(2), m.group(3))
 
     @classmethod
-    def parse_state(cls, text: str) -> Walls:
-        """Inverse of :attr:`state_text` (the side walls' drive, which a prepared state
-        does not depend on, set to the default)."""
-        mu_w, sep, torque = text.partition(",torque=")
-        if not sep or not mu_w.startswith("mu_w="):
-            raise ValueError(f"not a box state's walls: {text!r} (expected mu_w=..,torque=..)")
-        walls = cls(float(mu_w.removeprefix("mu_w=")), "shaken", torque)
+    def of_point(cls, wildcards) -> Walls:
+        """The walls of a point's rule wildcards (``box_mu_w``, ``box_side``, ``box_torque``)."""
+        walls = cls(float(wildcards.box_mu_w), wildcards.box_side, wildcards.box_torque)
+        walls.check()
+        return walls
+
+    @classmethod
+    def of_state(cls, wildcards) -> Walls:
+        """The walls of a prepared state's rule wildcards (``box_mu_w``, ``box_torque``; the
+        side walls' drive, which a prepared state does not depend on, set to the default)."""
+        walls = cls(float(wildcards.box_mu_w), "shaken", wildcards.box_torque)
         walls.check()
         return walls
 
@@ -493,7 +497,7 @@ def run_inputs(section: Mapping, wildcards) -> dict[str, str]:
     n_l, init, walls, rep, part = (
         int(wildcards.box_nl),
         wildcards.box_init,
-        Walls.parse(wildcards.box_walls),
+        Walls.of_point(wildcards),
         int(wildcards.box_rep),
         int(wildcards.box_part),
     )

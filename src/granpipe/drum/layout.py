@@ -672,8 +672,12 @@ def steps(section: Mapping) -> Steps:
     realign = block * round(_n_steps(pr["decay_alignment_s"], dt_s, "") / block)
     align = block * round(_n_steps(pr["tangent_alignment_s"], dt_s, "") / block)
     align = pre if pr["startup"] == "settled" else min(pre, align)
-    chunk = block * blocks(pr["chunk_s"], "drum.protocol.chunk_s")
-    sample = block * blocks(pr["pile_sample_s"], "drum.protocol.pile_sample_s")
+    # chunk and pile sample count blocks of the configured block_s, so that whether one
+    # divides the other does not depend on the time step
+    _n_steps(pr["chunk_s"], dt_s, "drum.protocol.chunk_s")
+    _n_steps(pr["pile_sample_s"], dt_s, "drum.protocol.pile_sample_s")
+    chunk = block * max(1, round(pr["chunk_s"] / pr["block_s"]))
+    sample = block * max(1, round(pr["pile_sample_s"] / pr["block_s"]))
     if chunk % sample:
         raise ConfigError(
             f"config key 'drum.protocol.pile_sample_s' = {pr['pile_sample_s']} s must divide "
