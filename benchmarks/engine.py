@@ -171,6 +171,17 @@ def box_driven(skin=None, quick=False, pkg="granpipe"):
     return sim, state, period
 
 
+def static_friction(sim, state):
+    """The drum pile of ``state`` under the static-friction law (spin, shear history; the
+    spins start at rest): ``(simulation, state)``."""
+    ssim = sim.replace(law=StaticFrictionLaw(**DRUM_PARAMS))
+    sstate = ssim.new_state(
+        state.positions, state.radii, state.masses, velocities=state.velocities,
+        spins=np.zeros(state.n), is_wall=state.is_wall,
+    )  # fmt: skip
+    return ssim, sstate
+
+
 def timed(sim, state, steps, repeats, n_particles, tangent=False):
     """Median ns per particle-step over ``repeats`` chunks; statistics of the timed steps.
 
@@ -234,12 +245,7 @@ def main(argv=None):
     med, per, stats = timed(sim, state, steps, args.repeats, 736, tangent=True)
     report("drum tangent", med, per, stats)
     out["drum_tangent_ns"] = med
-    # the same pile under the static-friction law (spin, shear history)
-    ssim = sim.replace(law=StaticFrictionLaw(**DRUM_PARAMS))
-    sstate = ssim.new_state(
-        state.positions, state.radii, state.masses, velocities=state.velocities,
-        spins=np.zeros(state.n), is_wall=state.is_wall,
-    )  # fmt: skip
+    ssim, sstate = static_friction(sim, state)
     ssim.random_tangent(sstate, np.random.default_rng(1))
     ssim.run(sstate, 35, stride=35, tangent=True)
     med, per, stats = timed(ssim, sstate, steps, args.repeats, 736, tangent=True)

@@ -2,7 +2,7 @@
 
     make bench-reference            # installs Debian's LAMMPS, then runs this script
     .venv/bin/python benchmarks/lammps_reference.py [--rounds 24] [--periods 2]
-        [--systems df,dt,bd,bc]
+        [--systems df,dt,st,bd,bc]
 
 Issue 3 sets its targets against LAMMPS (GRANULAR package, Debian's build, one core) on
 the systems of ``benchmarks/engine.py``: ~110 ns per particle-step for the drum, ~38 for
@@ -23,6 +23,12 @@ gravity, skin and rebuild criterion: a rebuild once some disk moved half the ski
   capped at Coulomb): the drum law of docs/drum.md. The 150 wall disks turn with ``fix move
   rotate`` at Omega; wall-wall pairs are excluded from the list. LAMMPS integrates spins
   too (``nve/sphere``), which the drum law has not; ns per *mobile* disk, as engine.py.
+* static-friction drum (``st``): the same pile under the static-friction law
+  (docs/drum.md, "Static friction"), with the tangent vector in the engine; LAMMPS'
+  ``tangential linear_history k_t gamma_t/gamma_n mu`` is the same Cundall-Strack spring
+  with its dashpot. It prices the richer law in both codes, so that the engine's
+  static/viscous cost ratio can be set beside LAMMPS' own; its printed target is 1.3
+  times the drum-with-tangent one.
 * box: ``pair_style gran/hooke/history kappa_n kappa_t gamma_n gamma_t mu 1``: normal
   spring, m_eff-scaled dashpots, tangential spring with shear history capped at
   Coulomb (the box law of docs/box.md, and LAMMPS' fastest granular style: ``granular``
@@ -70,9 +76,10 @@ import numpy as np
 DEBIAN_DIST = "/usr/lib/python3/dist-packages"
 
 # LAMMPS on the reference machine (ns per particle-step) and the targets
-REFERENCE_NS = {"df": 110.0, "dt": 110.0, "bd": 38.0, "bc": 100.0}
-TARGET_NS = {"df": 12.0, "dt": 25.0, "bd": 7.6, "bc": 20.0}
-NAMES = {"df": "drum forward", "dt": "drum tangent", "bd": "box driven", "bc": "box dense"}
+REFERENCE_NS = {"df": 110.0, "dt": 110.0, "st": 110.0, "bd": 38.0, "bc": 100.0}
+TARGET_NS = {"df": 12.0, "dt": 25.0, "st": 32.5, "bd": 7.6, "bc": 20.0}
+NAMES = {"df": "drum forward", "dt": "drum tangent", "st": "static fric.", "bd": "box driven"}
+NAMES["bc"] = "box dense"
 SYSTEMS = tuple(NAMES)
 
 
@@ -149,12 +156,16 @@ def drum_lammps(lmp, sim, state, tmp):
     period = 2.0 * math.pi / abs(omega)
     axis = "0 0 1" if omega > 0 else "0 0 -1"
     cmds = _common(sim.dt, state.skin, data)
+    if law.has_history:  # the static-friction law: a tangential spring
+        tangential = f"linear_history {law.k_tangential:.17g}"
+    else:
+        tangential = "linear_nohistory"
     cmds += [
         "group mobile type 1",
         "group wall type 2",
         "neigh_modify exclude type 2 2",
         "pair_style granular",
-        f"pair_coeff * * hooke {law.k_n:.17g} {law.gamma_n:.17g} tangential linear_nohistory "
+        f"pair_coeff * * hooke {law.k_n:.17g} {law.gamma_n:.17g} tangential {tangential} "
         f"{law.gamma_t / law.gamma_n:.17g} {law.mu:.17g} damping velocity",
         "fix integrate mobile nve/sphere disc",
         f"fix turn wall move rotate {cx:.17g} {cy:.17g} 0.0 {axis} {period:.17g}",
@@ -212,10 +223,12 @@ def _check_masses(lmp, mass, mob):
 def systems(which, rounds, tmp):
     """``{key: (engine chunk, LAMMPS chunk, particles)}``; each chunk runs ``steps`` steps."""
     out = {}
-    for key in [k for k in ("df", "dt") if k in which]:
+    for key in [k for k in ("df", "dt", "st") if k in which]:
         sim, st = bench.drum_system()
         kw = {}
-        if key == "dt":  # LAMMPS has no tangent dynamics: its drum is the same either way
+        if key == "st":
+            sim, st = bench.static_friction(sim, st)
+        if key != "df":  # LAMMPS has no tangent dynamics: its drum is the same either way
             sim.random_tangent(st, np.random.default_rng(1))
             kw = {"stride": 35, "tangent": True}
         lmp = _lammps()
