@@ -74,6 +74,8 @@ def _misuses(tmp_path, repo):
         ([*drum, "--batch", "0", "--threads", "0"], "'--threads'"),
         ([*drum, "--batch", "0", "--threads", "-3"], "'--threads'"),
         ([*box, "--Gamma", "-1.6"], "'--Gamma'"),
+        ([*box, "--Gamma", "nan"], "'--Gamma'"),
+        ([*box, "--Gamma", "inf"], "'--Gamma'"),
         (["drum", "ensemble", "--params", "{}", "--out", out, str(junk)],
          "--params lacks the key"),
         (["box", "init", "--params", "{}", "--N-l", "5", "--init", "crystal", "--out", out],

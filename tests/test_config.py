@@ -195,6 +195,21 @@ def _quick(repo):
         (("box", "physics", "Lx"), 1.5, "'box.physics.Lx' = 1.5 holds no crystal row"),
         (("box", "grid", "N_l"), [10**9], "'box.grid.N_l' = 1000000000: one job would need"),
         (("box", "protocol", "periods_per_part"), 1, None),
+        # counted before anything of that size is built (no array of 10**12 disks, no list
+        # of 10**18 batch names, no section copied per point of a long list)
+        (("drum", "physics", "n_small"), 10**12, "'drum.physics.n_small' = 1000000000000: one"),
+        (("column", "relaxation", "n_replicas"), 10**18, "'column.relaxation.n_replicas': 5"),
+        (("column", "relaxation", "n_taps"), 10**12, "'column.relaxation.n_taps' = 1000000000000"),
+        (
+            ("column", "chaos", "periods"),
+            [1.0 + i / 1e4 for i in range(6000)],
+            "'column.chaos.amplitudes': 12005 simulation jobs",
+        ),
+        (
+            ("drum", "physics", "period_s"),
+            [100.0 + i for i in range(6000)],
+            "'drum.physics.period_s': 12000 simulation jobs",
+        ),
     ],
 )
 def test_refusals_before_any_job_name_the_key(repo, path, value, match):

@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import json
+import math
 import sys
 
 import click
@@ -19,7 +20,16 @@ from . import __version__
 from .config import STUDIES
 from .errors import GranpipeError
 
-__all__ = ["main", "cli", "params_option", "parse_params", "INDEX", "THREADS", "POSITIVE"]
+__all__ = [
+    "main",
+    "cli",
+    "params_option",
+    "parse_params",
+    "INDEX",
+    "THREADS",
+    "POSITIVE",
+    "NON_NEGATIVE",
+]
 
 
 def parse_params(text: str) -> dict:
@@ -47,8 +57,23 @@ INDEX = click.IntRange(0, 2**63 - 1)
 THREADS = click.IntRange(1, 4096)
 """Threads of a job: at least one."""
 
-POSITIVE = click.FloatRange(0, min_open=True)
-"""A number > 0 (Γ, a tap period)."""
+
+class FiniteRange(click.FloatRange):
+    """A ``click.FloatRange`` that also refuses NaN and infinities (a range's bounds let
+    them through: ``nan > 0`` is false, and ``inf`` has no upper bound)."""
+
+    def convert(self, value, param, ctx):
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{number} is not a finite number", param, ctx)
+        return number
+
+
+POSITIVE = FiniteRange(0, min_open=True)
+"""A finite number > 0 (Γ, a tap period)."""
+
+NON_NEGATIVE = FiniteRange(0)
+"""A finite number >= 0 (a tap amplitude)."""
 
 
 params_option = click.option(

@@ -115,7 +115,12 @@ def check(section: Mapping) -> None:
     from ..config import check_memory, check_plan
     from .preparation import crystal_row_lengths
 
-    jobs = len(points(section)) * len(replicas(section)) * (n_parts(section) + 1)
+    # the points counted, not listed: a grid too large to plan is never built
+    n_points = math.prod(len(_as_list(v)) for v in (
+        grid["mu_side_walls"], section["physics"].get("side_walls", "shaken"),
+        section["physics"].get("wall_torque", "lever"), grid["N_l"], grid["inits"], grid["Gamma"],
+    ))  # fmt: skip
+    jobs = n_points * len(replicas(section)) * (n_parts(section) + 1)
     check_plan("box.grid", jobs, "raise 'box.protocol.periods_per_part' or shrink the grid")
     if n_parts(section) > 1000:  # the rules' three-digit part pattern
         raise ConfigError(

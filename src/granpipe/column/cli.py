@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import click
 
-from ..cli import INDEX, POSITIVE, params_option
+from ..cli import INDEX, NON_NEGATIVE, POSITIVE, params_option
 from ..config import validate_params
 
 _PHYSICS = "/$defs/physics"
@@ -82,7 +82,7 @@ def relaxation_cmd(params, batch, out):
 
 @cli.command("chaos")
 @params_option
-@click.option("--a", "amplitude", required=True, type=click.FloatRange(0), help="Tap amplitude a.")
+@click.option("--a", "amplitude", required=True, type=NON_NEGATIVE, help="Tap amplitude a.")
 @click.option("--T", "period", required=True, type=POSITIVE, help="Tap period T.")
 @click.option("--out", required=True, type=click.Path(dir_okay=False))
 def chaos_cmd(params, amplitude, period, out):

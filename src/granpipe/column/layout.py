@@ -102,18 +102,32 @@ def _check_columns(cfg: Mapping) -> None:
         except ConfigError as exc:
             raise ConfigError(f"config key '{key}': {exc}") from None
 
+    # the plan first, counted rather than listed: a grid or a batch count too large to plan
+    # is refused before anything loops over it
+    runs, chaos = cfg["relaxation"], cfg["chaos"]
+    n_batches = -(-int(runs.get("n_replicas", 8)) // int(runs.get("batch_size", 4)))
+    n_chaos = len(chaos["amplitudes"]) * len(chaos["periods"])
+    key, remedy = (
+        ("column.relaxation.n_replicas", "raise 'column.relaxation.batch_size'")
+        if n_batches >= n_chaos
+        else ("column.chaos.amplitudes", "list fewer amplitudes or periods in the chaos grid")
+    )
+    check_plan(key, len(cfg["figure1"]["sets"]) + n_batches + n_chaos + 2, remedy)
     fig1 = cfg["figure1"]
     for name, phys in fig1["sets"].items():
         samples = int(fig1.get("n_taps", 4) * phys["T"] / fig1.get("record_dt", 0.001)) + 1
         column(f"column.figure1.sets.{name}", phys, samples)
-    relax = cfg["relaxation"]["physics"]
+    relax = runs["physics"]
     column("column.relaxation.physics", relax)
+    # each replica's samples, (n_taps, N), and the batch's heights and densities per tap
+    taps = int(runs.get("n_taps", 100)) + 1
+    need = 16 * taps * (int(relax["N"]) + 2 * int(runs.get("batch_size", 4)))
+    check_memory("column.relaxation.n_taps", runs.get("n_taps", 100), need)
     if int(relax["N"]) < MIN_RELAXATION_N:
         raise ConfigError(
             f"config key 'column.relaxation.physics.N' = {relax['N']}: the relaxation column "
             f"needs N >= {MIN_RELAXATION_N} (the generic set, docs/column.md)"
         )
-    chaos = cfg["chaos"]
     for a in chaos["amplitudes"]:
         for t in chaos["periods"]:
             column("column.chaos.periods", {**chaos["physics"], "a": a, "T": t})
@@ -123,11 +137,6 @@ def _check_columns(cfg: Mapping) -> None:
                  + [int(k) for k in conv.get("lw_refinements", [64])])  # fmt: skip
     samples = int(cont.get("n_taps", 4) * cont["physics"]["T"] / cont.get("record_dt", 0.01)) + 1
     column("column.continuum.physics", cont["physics"], samples * finest)
-    jobs = len(cfg["figure1"]["sets"]) + len(relaxation_batches(cfg)) + len(chaos_points(cfg))
-    check_plan(
-        "column.relaxation.n_replicas", jobs + 2,
-        "raise 'column.relaxation.batch_size' or shrink the chaos grid",
-    )  # fmt: skip
 
 
 def step_factor(cfg: Mapping) -> float:

@@ -28,13 +28,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import MappingProxyType
 
-import numpy as np
 import yaml
 
 from ..config import MAX_SIMULATION_JOBS, check_memory, check_plan, fill_defaults, schema_dir
 from ..errors import ConfigError
 from ..io import config_hash
-from .model import PAPER_PHYSICS, diameters, geometry, omega
+from .model import PAPER_PHYSICS, geometry, omega
 
 __all__ = [
     "Steps",
@@ -433,6 +432,18 @@ def check(section: Mapping) -> dict:
             f"config keys 'drum.settle.min_time_s' = {st['min_time_s']} and "
             f"'drum.settle.max_time_s' = {st['max_time_s']}: min must not exceed max"
         )
+    # every point has at least one batch (two jobs): refuse a list of points too long to
+    # plan before building them (points() copies the section once per point)
+    values = [_values(sec, key) for key in POINT_KEYS]
+    n_points = (
+        math.prod(len(v) for v in values)
+        if sec["design"] == "product"
+        else 1 + sum(len(v) - 1 for v in values)
+    )
+    check_plan(
+        "drum.physics.period_s", 2 * n_points,
+        f"{n_points} point(s); list fewer values in the point keys",
+    )  # fmt: skip
     pts = points(sec)
     batches = [
         -(-int(p["ensemble"]["n_replicas"]) // int(p["ensemble"]["batch_size"])) for p in pts
@@ -459,16 +470,23 @@ def _check_drum(sec: Mapping) -> None:
     replicas fit in this machine's memory."""
 
     ph, gap = sec["physics"], float(sec["protocol"]["placement_gap"])
+    # counted, not built: an array of n_small disks is what the memory check guards against
+    sizes = [(float(ph[f"d_{k}"]), int(ph[f"n_{k}"])) for k in ("small", "large")]
+    n = sum(count for _, count in sizes) + int(ph["n_wall"])
+    check_memory(
+        "drum.physics.n_small", ph["n_small"],
+        n * BYTES_PER_DISK * int(sec["ensemble"]["threads"]),
+    )  # fmt: skip
     inner = geometry(ph).inner_radius
-    d = diameters(ph)
+    d_max = max(d for d, count in sizes if count > 0)
     reach = inner - gap
-    if reach - float(d.max()) / 2 <= 0:
+    if reach - d_max / 2 <= 0:
         raise ConfigError(
             f"config keys 'drum.physics.n_wall' = {ph['n_wall']} and 'd_wall' = {ph['d_wall']}: "
             f"the wall ring's free radius {inner:.4g} d_s holds no disk of diameter "
-            f"{float(d.max()):g} with the placement gap {gap:g}"
+            f"{d_max:g} with the placement gap {gap:g}"
         )
-    fraction = float(np.sum((d + gap) ** 2) / (4.0 * reach**2))
+    fraction = sum(count * (d + gap) ** 2 for d, count in sizes) / (4.0 * reach**2)
     if fraction > PLACEMENT_LIMIT:
         raise ConfigError(
             f"config keys 'drum.physics.n_small' = {ph['n_small']} and 'n_large' = "
@@ -477,11 +495,6 @@ def _check_drum(sec: Mapping) -> None:
             f"{ph['n_wall']} and 'd_wall' = {ph['d_wall']}), more than the "
             f"{PLACEMENT_LIMIT} random placement reaches: fewer disks or a larger drum"
         )
-    n = len(d) + int(ph["n_wall"])
-    check_memory(
-        "drum.physics.n_small", ph["n_small"],
-        n * BYTES_PER_DISK * int(sec["ensemble"]["threads"]),
-    )  # fmt: skip
 
 
 def _values(sec: Mapping, key: tuple) -> list:
