@@ -198,6 +198,11 @@ def _quick(repo):
         # counted before anything of that size is built (no array of 10**12 disks, no list
         # of 10**18 batch names, no section copied per point of a long list)
         (("drum", "physics", "n_small"), 10**12, "'drum.physics.n_small' = 1000000000000: one"),
+        (
+            ("drum", "protocol", "onset_window_s"),
+            1e12,
+            "'drum.protocol.onset_window_s' = 1000000000000.0: one job",
+        ),
         (("column", "relaxation", "n_replicas"), 10**18, "'column.relaxation.n_replicas': 5"),
         (("column", "relaxation", "n_taps"), 10**12, "'column.relaxation.n_taps' = 1000000000000"),
         (

@@ -163,6 +163,13 @@ def main(argv=None):
     except GranpipeError as exc:
         click.echo(f"granpipe: error: {exc}", err=True)
         sys.exit(1)
+    except MemoryError as exc:  # sizes past what `granpipe check-config` lets through
+        click.echo(
+            f"granpipe: error: out of memory ({exc}); the sizes in --params are larger than "
+            "this machine holds (`granpipe check-config` estimates them per job)",
+            err=True,
+        )
+        sys.exit(1)
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
 

@@ -393,6 +393,10 @@ PLACEMENT_LIMIT = 0.45
 disk their centres may reach: random sequential addition stalls towards its jamming
 limit (0.547 in the plane; the paper's drum fills 0.23)."""
 
+BYTES_PER_BLOCK = 256
+"""A generous bound on one replica's recorded bytes per block (block means of λ, V, the
+pile's tilt and centroid, counts), for the memory check of :func:`check`."""
+
 BYTES_PER_DISK = 4096
 """A generous bound on one replica's memory per disk (state rows, neighbour and pair
 lists, pair buffers: ``granpipe.engine.layout``), for the memory check of :func:`check`."""
@@ -459,7 +463,13 @@ def check(section: Mapping) -> dict:
         f"{len(pts)} point(s); raise 'drum.ensemble.batch_size'",
     )  # fmt: skip
     for p in pts:
-        steps(p)  # times shorter than a step, a pre-rotation of no step
+        st = steps(p)  # times shorter than a step, a pre-rotation of no step
+        # a batch's block records (λ, V and the pile's state per block, a few rows each)
+        blocks = (st.onset + st.decay + st.max_rotation) // st.block
+        check_memory(
+            "drum.protocol.onset_window_s", p["protocol"]["onset_window_s"],
+            BYTES_PER_BLOCK * blocks * int(p["ensemble"]["batch_size"]),
+        )  # fmt: skip
     _check_drum(sec)
     return sec
 
