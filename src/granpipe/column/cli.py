@@ -71,16 +71,10 @@ def trajectories_cmd(params, set_name, out):
 @click.option("--out", required=True, type=click.Path(dir_okay=False))
 def relaxation_cmd(params, batch, out):
     """Density relaxation: one batch of perturbed starts over many taps."""
-    from .layout import MIN_RELAXATION_N
     from .stages import relaxation_stage
 
     keys = ("n_taps", "batch_size", "perturbation")
     checked = _checked(params, {"physics": _PHYSICS, **_STEP, **{k: _RELAX + k for k in keys}})
-    if int(checked["physics"]["N"]) < MIN_RELAXATION_N:
-        raise click.BadParameter(
-            f"key 'physics.N' = {checked['physics']['N']}: the relaxation column needs "
-            f"N >= {MIN_RELAXATION_N} (docs/column.md)", param_hint="'--params'",
-        )  # fmt: skip
     relaxation_stage(checked, batch, out)
 
 
