@@ -167,6 +167,13 @@ def test_a_point_folder_swapped_for_another_points_is_refused_naming_both(pipeli
     with pytest.raises(RunFileError, match=both):
         runs_stage(params["sim"][ref], 0, tmp / other / "init_0.nc", tmp_path / "r.nc")
     assert not list(tmp_path.glob("*.nc"))
+    # a fits file of a point the summary is not given, copied over the reference's
+    fits = tmp_path / "fits"
+    fits.mkdir()
+    (fits / f"{ref}.nc").write_bytes((tmp / "fits" / f"{names[2]}.nc").read_bytes())
+    with pytest.raises(RunFileError, match=rf"of point {re.escape(names[2])}, not of"):
+        summary_stage([fits / f"{ref}.nc", tmp / "fits" / f"{other}.nc"], fits / "s.csv")
+    assert not (fits / "s.csv").exists()
 
 
 def test_restamp_reuses_files_whose_physics_a_point_has(pipeline, tmp_path):

@@ -180,6 +180,11 @@ def summary_stage(fits: Sequence[str | os.PathLike], summary: str | os.PathLike)
         ds = read_dataset(path)
         expect_input(ds, path, study=STUDY, stage="fits")
         point = str(ds.attrs.get("point"))
+        if Path(path).stem != point:  # fits/<point>.nc (layout.fits_file)
+            raise RunFileError(
+                f"{path} holds the fits of point {point}, not of {Path(path).stem}: a file "
+                "copied over another point's; remove it and rerun"
+            )
         if point in points:
             raise RunFileError(f"point {point} appears twice: in {points[point]} and in {path}")
         points[point] = path
