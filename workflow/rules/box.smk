@@ -13,6 +13,10 @@ if "box" in config:
     BOX = config["box"]
     BOX_ENSEMBLE_FILES = [out("box", f) for f in box_layout.ensemble_files(BOX)]
     BOX_INIT_FILES = [out("box", f) for f in box_layout.init_files(BOX)]
+    # a point's and a prepared state's folder names as wildcards (box_layout.point_name,
+    # box_layout.state_name fill them)
+    BOX_POINT = "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_mu_w},walls={box_side},torque={box_torque}"
+    BOX_STATE = "N_l={box_nl},init={box_init},mu_w={box_mu_w},torque={box_torque}"
 
     wildcard_constraints:
         box_nl=r"\d+",
@@ -29,7 +33,7 @@ if "box" in config:
     rule box_init:
         """Crystal (relaxed lattice) or random (placement, fall, settle) initial state."""
         output:
-            out("box", "init", "N_l={box_nl},init={box_init},mu_w={box_mu_w},torque={box_torque}", "replica_{box_rep}.nc"),
+            out("box", "init", BOX_STATE, "replica_{box_rep}.nc"),
         params:
             json=lambda w: as_json(
                 box_layout.init_params(BOX, box_layout.Walls.of_state(w))
@@ -37,7 +41,7 @@ if "box" in config:
         conda:
             "../envs/granpipe.yaml"
         log:
-            log_path("box", "init", "N_l={box_nl},init={box_init},mu_w={box_mu_w},torque={box_torque}", "replica_{box_rep}.log"),
+            log_path("box", "init", BOX_STATE, "replica_{box_rep}.log"),
         threads: 1
         resources:
             runtime=lambda w: box_layout.sim_minutes(BOX, int(w.box_nl), 0),
@@ -61,7 +65,7 @@ if "box" in config:
             out(
                 "box",
                 "runs",
-                "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_mu_w},walls={box_side},torque={box_torque}",
+                BOX_POINT,
                 "replica_{box_rep}.part_{box_part}.nc",
             ),
         params:
@@ -79,7 +83,7 @@ if "box" in config:
             log_path(
                 "box",
                 "runs",
-                "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_mu_w},walls={box_side},torque={box_torque}",
+                BOX_POINT,
                 "replica_{box_rep}.part_{box_part}.log",
             ),
         threads: 1
@@ -108,13 +112,13 @@ if "box" in config:
                 )
             ],
         output:
-            out("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_mu_w},walls={box_side},torque={box_torque}.nc"),
+            out("box", "ensemble", f"{BOX_POINT}.nc"),
         params:
             json=lambda w, output: as_json(box_layout.ensemble_params(BOX, Path(output[0]).stem)),
         conda:
             "../envs/granpipe.yaml"
         log:
-            log_path("box", "ensemble", "N_l={box_nl},Gamma={box_gamma},init={box_init},mu_w={box_mu_w},walls={box_side},torque={box_torque}.log"),
+            log_path("box", "ensemble", f"{BOX_POINT}.log"),
         threads: 1
         resources:
             runtime=10,
