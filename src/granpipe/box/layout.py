@@ -115,11 +115,10 @@ def check(section: Mapping) -> None:
     from ..config import check_memory, check_plan
     from .preparation import crystal_row_lengths
 
-    # the points counted, not listed: a grid too large to plan is never built
-    n_points = math.prod(len(_as_list(v)) for v in (
-        grid["mu_side_walls"], section["physics"].get("side_walls", "shaken"),
-        section["physics"].get("wall_torque", "lever"), grid["N_l"], grid["inits"], grid["Gamma"],
-    ))  # fmt: skip
+    # the points counted, not listed (as :func:`points` would): a grid too large to plan
+    # is never built
+    n_points = len(wall_settings(section)) * len(grid["N_l"]) * len(grid["inits"])
+    n_points *= len(grid["Gamma"])
     jobs = n_points * len(replicas(section)) * (n_parts(section) + 1)
     check_plan("box.grid", jobs, "raise 'box.protocol.periods_per_part' or shrink the grid")
     if n_parts(section) > 1000:  # the rules' three-digit part pattern

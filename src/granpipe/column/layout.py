@@ -17,6 +17,7 @@ __all__ = [
     "figure_sets",
     "trajectory_params",
     "relaxation_batches",
+    "n_relaxation_batches",
     "relaxation_params",
     "chaos_points",
     "chaos_params",
@@ -105,7 +106,7 @@ def _check_columns(cfg: Mapping) -> None:
     # the plan first, counted rather than listed: a grid or a batch count too large to plan
     # is refused before anything loops over it
     runs, chaos = cfg["relaxation"], cfg["chaos"]
-    n_batches = -(-int(runs.get("n_replicas", 8)) // int(runs.get("batch_size", 4)))
+    n_batches = n_relaxation_batches(cfg)
     n_chaos = len(chaos["amplitudes"]) * len(chaos["periods"])
     key, remedy = (
         ("column.relaxation.n_replicas", "raise 'column.relaxation.batch_size'")
@@ -169,11 +170,15 @@ def trajectory_params(cfg: Mapping, name: str) -> dict:
     }
 
 
-def relaxation_batches(cfg: Mapping) -> list[str]:
-    """Batch ids 0000, 0001, …: whole batches covering n_replicas (batches are always full)."""
+def n_relaxation_batches(cfg: Mapping) -> int:
+    """Whole batches covering n_replicas (batches are always full)."""
     r = cfg["relaxation"]
-    n, size = int(r.get("n_replicas", 8)), int(r.get("batch_size", 4))
-    return [f"{b:04d}" for b in range(-(-n // size))]
+    return -(-int(r.get("n_replicas", 8)) // int(r.get("batch_size", 4)))
+
+
+def relaxation_batches(cfg: Mapping) -> list[str]:
+    """Batch ids 0000, 0001, … (:func:`n_relaxation_batches` of them)."""
+    return [f"{b:04d}" for b in range(n_relaxation_batches(cfg))]
 
 
 def relaxation_params(cfg: Mapping) -> dict:

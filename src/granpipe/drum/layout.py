@@ -438,12 +438,7 @@ def check(section: Mapping) -> dict:
         )
     # every point has at least one batch (two jobs): refuse a list of points too long to
     # plan before building them (points() copies the section once per point)
-    values = [_values(sec, key) for key in POINT_KEYS]
-    n_points = (
-        math.prod(len(v) for v in values)
-        if sec["design"] == "product"
-        else 1 + sum(len(v) - 1 for v in values)
-    )
+    n_points = len(_combinations(sec))
     check_plan(
         "drum.physics.period_s", 2 * n_points,
         f"{n_points} point(s); list fewer values in the point keys",
@@ -524,14 +519,7 @@ def points(section: Mapping) -> list[dict]:
     ``ensemble.variant_replicas`` replicas when that is set.
     """
     sec = filled(section)
-    values = [_values(sec, key) for key in POINT_KEYS]
-    if sec["design"] == "product":
-        combos = [list(c) for c in itertools.product(*values)]
-    else:
-        ref = [v[0] for v in values]
-        combos = [ref]
-        for i, vals in enumerate(values):
-            combos += [ref[:i] + [v] + ref[i + 1 :] for v in vals[1:]]
+    combos = _combinations(sec)
     out = []
     variant = sec["ensemble"]["variant_replicas"]
     for i, combo in enumerate(combos):
@@ -542,6 +530,19 @@ def points(section: Mapping) -> list[dict]:
             p["ensemble"]["n_replicas"] = int(variant)
         out.append(p)
     return out
+
+
+def _combinations(sec: Mapping) -> list[list]:
+    """The values of :data:`POINT_KEYS` of every point of a filled section, in the order
+    of :func:`points` (a few values per point: cheap where the points are not)."""
+    values = [_values(sec, key) for key in POINT_KEYS]
+    if sec["design"] == "product":
+        return [list(c) for c in itertools.product(*values)]
+    ref = [v[0] for v in values]
+    combos = [ref]
+    for i, vals in enumerate(values):
+        combos += [ref[:i] + [v] + ref[i + 1 :] for v in vals[1:]]
+    return combos
 
 
 def reference_point(section: Mapping) -> dict:
