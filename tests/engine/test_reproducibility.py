@@ -197,10 +197,26 @@ def test_state_saved_in_format_7_continues_bit_identically(kind):
     old["ivec"] = np.concatenate([old["ivec"], np.full(old["ivec"].shape[:1] + (3,) +
                                   old["ivec"].shape[2:], 2)], axis=1)  # fmt: skip
     old["touch"] = old["touch"] * 3  # 1 + piece 2 where touching
+    old["sca"] = old["sca"][:, : L.WALL_RATE]  # no wall rates before format 9
     b = State.from_arrays(old)
     assert b._s["ivec"].shape == a._s["ivec"].shape
     sim.run(a, 300, tangent=tangent)
     sim.run(b, 300, tangent=tangent)
+    assert_identical(a, b)
+
+
+def test_state_saved_in_format_8_turns_its_wall_disks_at_rate_one():
+    """Format 8 had no wall rates (every wall disk turned with the wall disks' omega):
+    such a state loads with rate 1 on its wall disks and continues exactly."""
+    sim, a = drum_state(5)
+    sim.run(a, 300, tangent=True)
+    old = a.to_arrays()
+    old["engine_format"] = np.asarray(8)
+    old["sca"] = old["sca"][:, : L.WALL_RATE]
+    b = State.from_arrays(old)
+    np.testing.assert_array_equal(b._s["sca"][:, L.WALL_RATE], a._s["ivec"][:, L.IS_WALL])
+    sim.run(a, 300, tangent=True)
+    sim.run(b, 300, tangent=True)
     assert_identical(a, b)
 
 

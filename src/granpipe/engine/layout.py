@@ -11,11 +11,13 @@ POS, VEL, FRC, POS_BUILD, WALL_REF, T_POS, T_VEL, T_FRC, IM2, MOB2, MG = range(1
 NV = 11
 # rows of sca (NS, N): T_SPIN, T_TORQUE are the tangent vector's spin and torque (laws
 # with spin); XI_LEFT .. XI_BOTTOM the shear histories of each disk against the three
-# flat walls and T_XI_LEFT .. their perturbations (laws with history)
+# flat walls and T_XI_LEFT .. their perturbations (laws with history); WALL_RATE a wall
+# disk's angular velocity in units of the wall disks' omega (1: turns with them, 0: still)
 RADIUS, INV_MASS, INV_INERTIA, SPIN, TORQUE, T_PREV, XI_LEFT, XI_RIGHT, XI_BOTTOM = range(9)
 T_SPIN, T_TORQUE = 9, 10
 T_XI_LEFT, T_XI_RIGHT, T_XI_BOTTOM = 11, 12, 13
-NS = 14
+WALL_RATE = 14
+NS = 15
 # rows of ivec (NI, N)
 IS_WALL, CONTACTS, CELL_ITEMS, CELL_OF, PAIR_CONTACTS = range(5)
 NI = 5

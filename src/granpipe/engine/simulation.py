@@ -151,7 +151,12 @@ class Ensemble:
             storage["ivec"] = np.ascontiguousarray(storage["ivec"][:, : K.NI])
             storage["touch"] = np.minimum(storage["touch"], 1)
             storage["counters"][..., K.COUNT_STALE] = 1
-            storage["sca"] = _pad(storage["sca"].swapaxes(1, 2), K.NS).swapaxes(1, 2).copy()
+            storage["sca"] = _pad(storage["sca"].swapaxes(1, 2), K.NS - 1).swapaxes(1, 2).copy()
+        if fmt < 9:
+            # before 9 every wall disk turned with the wall disks' omega (rate 1)
+            sca = _pad(storage["sca"].swapaxes(1, 2), K.NS).swapaxes(1, 2).copy()
+            sca[:, K.WALL_RATE] = storage["ivec"][:, K.IS_WALL] != 0
+            storage["sca"] = sca
         # scratch is rewritten before it is read
         vec = storage["vec"]
         storage.update(_scratch(vec.shape[:1], vec.shape[2], storage["pair_ij"].shape[-1]))
@@ -424,10 +429,10 @@ def _pad(arr, width):
     return out
 
 
-_FORMAT = 8
+_FORMAT = 9
 # the rows of sca holding the flat walls' shear histories and their perturbations
 _HISTORY_ROWS = [K.XI_LEFT, K.XI_RIGHT, K.XI_BOTTOM, K.T_XI_LEFT, K.T_XI_RIGHT, K.T_XI_BOTTOM]
-_LOADS = (6, 7, _FORMAT)  # formats a state saved by an earlier engine may have
+_LOADS = (6, 7, 8, _FORMAT)  # formats a state saved by an earlier engine may have
 # storage that only carries values within one step or list build (pair buffers, the old
 # list while histories are carried over): not saved by ``to_arrays``
 _SCRATCH_KEYS = ("old_start", "old_j", "old_xi", "old_dxi", "buf", "flip")
@@ -546,6 +551,7 @@ class Simulation:
         velocities=None,
         spins=None,
         is_wall=None,
+        wall_rate=None,
         inertia=None,
         time=0.0,
     ) -> State | Ensemble:
@@ -567,6 +573,10 @@ class Simulation:
             Initial angular velocities (box law only; default 0).
         is_wall : (N,) or (R, N) bool, optional
             Disks whose motion is prescribed by ``wall_disks`` (default: none).
+        wall_rate : (N,) or (R, N) float64, optional
+            Each wall disk's angular velocity in units of ``wall_disks.omega`` (default
+            1: the wall disks turn as one body; 0 keeps a disk still; mobile disks'
+            entries are ignored).
         inertia : (N,) or (R, N) float64 [mass*length²], optional
             Moments of inertia (box law; default ``m sigma²/8 = m a²/2``; ``inf`` keeps
             a disk from turning).
@@ -596,6 +606,9 @@ class Simulation:
         rad = per_disk(radii, "radii")
         mass = per_disk(masses, "masses")
         wall = per_disk(is_wall, "is_wall", default=False, dtype=bool)
+        rate = np.where(wall, per_disk(wall_rate, "wall_rate", default=1.0), 0.0)
+        if not np.all(np.isfinite(rate)):
+            raise ConfigError("wall_rate must be finite")
         if not np.all(np.isfinite(rad) & (rad > 0)):
             raise ConfigError("radii must be finite and > 0")
         if not np.all(wall | (np.isfinite(mass) & (mass > 0))):
@@ -645,11 +658,12 @@ class Simulation:
         sca[:, K.INV_MASS] = inv_mass
         sca[:, K.INV_INERTIA] = inv_inertia
         sca[:, K.SPIN] = np.where(wall, 0.0, spin)
+        sca[:, K.WALL_RATE] = rate
         ivec[:, K.IS_WALL] = wall
         clock = np.zeros((r_count, K.NCLOCK))
         clock[:, K.T_ORIGIN] = float(time)
         clock[:, K.OVERLAP_FRAC] = self.max_overlap
-        clock[:, K.WALL_RMAX] = np.sqrt((ref**2).sum(-1)).max(-1)
+        clock[:, K.WALL_RMAX] = (np.abs(rate) * np.sqrt((ref**2).sum(-1))).max(-1)
         counters = np.zeros((r_count, K.NCOUNT), dtype=np.int64)
         counters[:, K.N_WALLS] = nw
         counters[:, K.NEAR_WALLS] = -1

@@ -3,12 +3,15 @@
 Walls act on disks through the same contact law as disk pairs, with infinite mass
 on the wall side (docs/drum.md, docs/box.md; docs/architecture.md, "The engine").
 
-* :class:`WallDisks` — the disks flagged ``is_wall`` form one rigid body turning
-  about ``centre`` at angular velocity ``omega`` (counter-clockwise positive; the
-  drum of docs/drum.md turns clockwise, ``omega = -2.4417e-4``), which switches
-  abruptly to ``omega_after`` at ``t_switch`` (the drum stop). The rotation angle
-  is part of the state, so the motion can be redefined between chunks of a run
-  without a jump.
+* :class:`WallDisks` — the disks flagged ``is_wall`` turn rigidly about ``centre`` at
+  angular velocity ``omega`` (counter-clockwise positive; the drum of docs/drum.md
+  turns clockwise, ``omega = -2.4417e-4``), which switches abruptly to
+  ``omega_after`` at ``t_switch`` (the drum stop). Each wall disk turns at its own
+  multiple of it, its rate (``Simulation.new_state(wall_rate=...)``, default 1): rings
+  about one centre that turn at different speeds, e.g. the shear cell's turning inner
+  ring (rate 1) and still outer ring (rate 0), docs/shear.md. The rotation angle is
+  part of the state, so the motion can be redefined between chunks of a run without a
+  jump.
 * :class:`FlatWalls` — vertical lines ``x = x_left`` and ``x = x_right`` and a
   horizontal bottom at ``y = z_b(t) = z0 + A r(t) sin(omega t + phase)``, with an
   optional linear amplitude ramp ``r(t) = clip((t - ramp_start)/ramp_time, 0, 1)``
@@ -237,27 +240,34 @@ def has_flat(fw):
 
 @njit
 def place_wall_disks(vec, sca, walls, n_walls, wd, theta, omega):
-    """Place the wall disks at angle ``theta`` with velocities ``omega x (r - c)`` and spin
-    ``omega``."""
+    """Place each wall disk at angle ``rate theta`` with velocity ``rate omega x (r - c)``
+    and spin ``rate omega`` (its rate: ``sca[WALL_RATE]``)."""
     pos = vec[L.POS]
     vel = vec[L.VEL]
     ref = vec[L.WALL_REF]
     spin = sca[L.SPIN]
+    rate = sca[L.WALL_RATE]
     cx = wd[0]
     cy = wd[1]
-    c = math.cos(theta)
-    s = math.sin(theta)
+    c1 = math.cos(theta)
+    s1 = math.sin(theta)
     for m in range(n_walls):
         i = walls[m]
+        f = rate[i]
+        c, s = c1, s1
+        if f != 1.0:
+            c = math.cos(f * theta)
+            s = math.sin(f * theta)
+        w = f * omega
         rx = ref[i, 0]
         ry = ref[i, 1]
         x = cx + c * rx - s * ry
         y = cy + s * rx + c * ry
         pos[i, 0] = x
         pos[i, 1] = y
-        vel[i, 0] = -omega * (y - cy)
-        vel[i, 1] = omega * (x - cx)
-        spin[i] = omega
+        vel[i, 0] = -w * (y - cy)
+        vel[i, 1] = w * (x - cx)
+        spin[i] = w
 
 
 @njit
@@ -274,7 +284,8 @@ def advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin):
             clock[L.THETA] += omega * dt
             place_wall_disks(vec, sca, walls, n_walls, wd, clock[L.THETA], omega)
             clock[L.LAST_OMEGA] = omega
-            # a wall disk at distance R has moved by at most R |theta - theta_build|
+            # a wall disk at distance R and rate f has moved by at most
+            # |f| R |theta - theta_build| (WALL_RMAX: the largest |f| R)
             moved = clock[L.WALL_RMAX] * abs(clock[L.THETA] - clock[L.THETA_BUILD]) > half_skin
     zb = 0.0
     vb = 0.0
