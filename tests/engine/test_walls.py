@@ -49,8 +49,9 @@ def test_wall_rings_turn_at_their_own_rates_and_a_still_ring_stays():
     pos = np.vstack([[[0.5 * (r_in + r_out), 0.0]], inner, outer, third])
     n = len(pos)
     rate = np.r_[0.0, np.ones(20), np.zeros(60), np.full(40, -0.5)]
+    vel = np.r_[[[0.0, 0.1]], np.zeros((n - 1, 2))]
     state = sim.new_state(pos, np.full(n, 0.5), np.ones(n), is_wall=np.arange(n) > 0,
-                          wall_rate=rate, velocities=np.r_[[[0.0, 0.1]], np.zeros((n - 1, 2))])  # fmt: skip
+                          wall_rate=rate, velocities=vel)  # fmt: skip
     sim.run(state, 300)
     for ring, rows, f in ((inner, slice(1, 21), 1.0), (outer, slice(21, 81), 0.0),
                           (third, slice(81, n), -0.5)):  # fmt: skip
@@ -94,8 +95,8 @@ def test_disk_pressed_on_a_turning_wall_disk_is_dragged_as_eq1_predicts(v_wall):
         vx[k] = state.velocities[0, 0]
     cap = mu * g
     t_c = max(0.0, (v_wall - cap / gamma_t) / cap)
-    expect = np.where(t < t_c, cap * t,
-                      v_wall - min(cap, gamma_t * v_wall) / gamma_t * np.exp(-gamma_t * (t - t_c)))  # fmt: skip
+    u_c = min(cap, gamma_t * v_wall) / gamma_t  # the slip when viscous friction takes over
+    expect = np.where(t < t_c, cap * t, v_wall - u_c * np.exp(-gamma_t * (t - t_c)))
     assert (t_c > 0) == (gamma_t * v_wall > cap)
     # to the O(dt) of velocity Verlet (the half-step velocities the force sees) and the
     # wall's curvature
