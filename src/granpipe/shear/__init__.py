@@ -1,0 +1,1 @@
+"""The sheared annular cell (docs/shear.md)."""
