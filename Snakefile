@@ -1,4 +1,4 @@
-# granpipe workflow: three granular-dynamics studies (docs/), five stages each
+# granpipe workflow: four granular-dynamics studies (docs/), five stages each
 # (docs/architecture.md).
 #
 #   snakemake --cores 2                                  # default scale (config/config.yaml)
@@ -27,6 +27,7 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/drum.smk"
 include: "workflow/rules/column.smk"
 include: "workflow/rules/box.smk"
+include: "workflow/rules/shear.smk"
 
 
 rule all:

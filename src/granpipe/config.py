@@ -42,7 +42,7 @@ __all__ = [
     "machine_memory",
 ]
 
-STUDIES = ("drum", "column", "box")
+STUDIES = ("drum", "column", "box", "shear")
 
 
 def schema_dir() -> Path:
@@ -313,6 +313,7 @@ STUDY_CHECKS = {
     "drum": "granpipe.drum.layout",
     "column": "granpipe.column.layout",
     "box": "granpipe.box.layout",
+    "shear": "granpipe.shear.layout",
 }
 """Modules whose ``check(section)`` makes the cross-key checks of a study's section (fit
 windows inside the recorded window, min ≤ max, selections inside the grid, ...)."""

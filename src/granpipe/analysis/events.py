@@ -13,6 +13,11 @@ docs/drum.md, "Aligned on each pile's avalanche").
 * :func:`align_on_events` — the (replica, τ) matrix of the records shifted onto their
   events, NaN where a replica's record does not reach (or it has no event).
 * :func:`event_aligned_average` — mean, standard error and count per τ of that matrix.
+* :func:`align_on_many_events` — several events per replica (the shear cell's
+  rearrangements): each replica's mean over its own events and their count per τ, the
+  (unit, τ) means and counts that :func:`~granpipe.analysis.ensemble.pooled_batch_mean`
+  pools and :func:`~granpipe.analysis.bootstrap.bootstrap_batches` resamples by replica
+  (events of one replica are not independent; replicas are).
 
 The aligned matrix is what :func:`granpipe.analysis.bootstrap.bootstrap_replicas`
 resamples (each replica keeps its own event time in every resample), and its batch
@@ -27,7 +32,7 @@ import numpy as np
 
 from .ensemble import replica_mean_sem
 
-__all__ = ["first_run", "align_on_events", "event_aligned_average"]
+__all__ = ["first_run", "align_on_events", "event_aligned_average", "align_on_many_events"]
 
 
 def first_run(mask: np.ndarray, hold: int, start: np.ndarray | int = 0) -> np.ndarray:
@@ -128,3 +133,41 @@ def event_aligned_average(
     tau, Z = align_on_events(t, Y, events, before, after)
     mean, sem, count = replica_mean_sem(Z)
     return tau, mean, sem, count
+
+
+def align_on_many_events(
+    t: np.ndarray,
+    Y: np.ndarray,
+    events: list[np.ndarray],
+    before: float,
+    after: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each replica's record aligned on each of its events, pooled per replica.
+
+    Parameters
+    ----------
+    t : (T,) [time], uniformly spaced; Y : (R, T), one record per replica
+    events : R arrays of event times [time] (any number, possibly none, per replica)
+    before, after : as :func:`align_on_events`
+
+    Returns
+    -------
+    tau : (L,) [time]
+    means : (R, L) [Y], the mean over a replica's events at each τ (NaN where none reach)
+    counts : (R, L) int, the number of its events that reach each τ
+    """
+    Y = np.atleast_2d(np.asarray(Y, dtype=np.float64))
+    if len(events) != Y.shape[0]:
+        raise ValueError(f"{len(events)} event lists for {Y.shape[0]} replicas")
+    tau, _ = align_on_events(t, Y[:1], np.array([np.nan]), before, after)
+    means = np.full((Y.shape[0], tau.size), np.nan)
+    counts = np.zeros((Y.shape[0], tau.size), dtype=np.int64)
+    for r, ev in enumerate(events):
+        ev = np.asarray(ev, dtype=np.float64).reshape(-1)
+        if ev.size == 0:
+            continue
+        _, Z = align_on_events(t, np.repeat(Y[r : r + 1], ev.size, axis=0), ev, before, after)
+        counts[r] = np.isfinite(Z).sum(axis=0)
+        with np.errstate(invalid="ignore"):
+            means[r] = np.where(counts[r] > 0, np.nansum(Z, axis=0) / counts[r], np.nan)
+    return tau, means, counts

@@ -1,0 +1,104 @@
+"""Figures of the shear study (docs/shear.md, "Figures"): data in, Figure out.
+
+* :func:`fig1_lambda_vs_phi` — ⟨λ⟩ against φ with its intervals, and the rearrangement
+  rate (Ref. [20]'s chaotic-to-non-chaotic transition).
+* :func:`fig2_event_triggered` — λ̄ averaged over the events, each replica aligned on its
+  own, against t − t_event, one curve per φ, with the count of events.
+* :func:`fig3_contrast` — the drum paper's contrast: the shear cell's event-triggered λ̄
+  beside the drum's λ̄ aligned on each pile's own onset of sustained flow, same law, same
+  analysis (the drum's fits file, when the scale runs the drum).
+* :func:`fig4_chaos_map` — where the chaos lives: the disks coloured by |δu_i| beside the
+  same disks coloured by speed (the drum paper's Fig. 2 style), one replica.
+
+Inputs are the fits files (``granpipe.shear.fits``); the stage writes PNG and PDF through
+:func:`granpipe.figures.save_figure`.
+"""
+
+from __future__ import annotations
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import xarray as xr  # noqa: E402
+from matplotlib.collections import EllipseCollection  # noqa: E402
+
+__all__ = ["fig1_lambda_vs_phi", "fig2_event_triggered", "fig3_contrast", "fig4_chaos_map"]
+
+
+def _v(ds, name):
+    return float(ds[name].values) if name in ds else np.nan
+
+
+def fig1_lambda_vs_phi(fits: dict[str, xr.Dataset]) -> plt.Figure:
+    fig, (a, b) = plt.subplots(1, 2, figsize=(9, 3.6))
+    phi = np.array([float(ds.attrs["phi"]) for ds in fits.values()])
+    m = np.array([_v(ds, "lambda_mean") for ds in fits.values()])
+    lo = np.array([_v(ds, "lambda_mean_ci_low") for ds in fits.values()])
+    hi = np.array([_v(ds, "lambda_mean_ci_high") for ds in fits.values()])
+    err = np.nan_to_num(np.vstack([m - lo, hi - m]))
+    a.errorbar(phi, m, yerr=err, fmt="o-", capsize=3)
+    a.axhline(0.0, color="0.5", lw=0.8)
+    a.set(xlabel="packing fraction φ", ylabel="⟨λ⟩ [1/t0]", title="time-averaged λ")
+    rate = [_v(ds, "event_rate") for ds in fits.values()]
+    b.plot(phi, rate, "s-", color="tab:green")
+    b.set(xlabel="packing fraction φ", ylabel="events per replica and s",
+          title="rearrangements")  # fmt: skip
+    fig.tight_layout()
+    return fig
+
+
+def fig2_event_triggered(fits: dict[str, xr.Dataset]) -> plt.Figure:
+    fig, (a, b) = plt.subplots(2, 1, figsize=(6, 6), sharex=True,
+                               gridspec_kw={"height_ratios": [3, 1]})  # fmt: skip
+    for point, ds in fits.items():
+        lead = _v(ds, "lead_time")
+        txt = f"{point}, lead {lead:.2f} s" if np.isfinite(lead) else f"{point}, no crossing"
+        (line,) = a.plot(ds["tau"], ds["aligned_lambda_bar"], label=txt)
+        b.plot(ds["tau"], ds["aligned_count"], color=line.get_color())
+    a.axhline(0.0, color="0.5", lw=0.8)
+    a.axvline(0.0, color="k", lw=0.8, ls=":")
+    a.set(ylabel="λ̄ over events [1/t0]", title="λ̄ aligned on each rearrangement")
+    a.legend(fontsize=7)
+    b.set(xlabel="t − t_event [s]", ylabel="events")
+    fig.tight_layout()
+    return fig
+
+
+def fig3_contrast(shear: xr.Dataset, drum: xr.Dataset | None) -> plt.Figure:
+    fig, a = plt.subplots(figsize=(6.5, 4))
+    lead = _v(shear, "lead_time")
+    a.plot(shear["tau"], shear["aligned_lambda_bar"], color="tab:purple",
+           label=f"shear cell ({shear.attrs['point']}): lead time {lead:.2f} s")  # fmt: skip
+    if drum is not None and "aligned_lambda_bar_onset" in drum:
+        lag = _v(drum, "onset_lag_aligned")
+        a.plot(drum["tau_onset"], drum["aligned_lambda_bar_onset"], color="tab:blue",
+               label=f"drum, aligned on each pile's flow onset: lag {lag:.2f} s")  # fmt: skip
+    a.axhline(0.0, color="0.5", lw=0.8)
+    a.axvline(0.0, color="k", lw=0.8, ls=":")
+    a.set(xlabel="time after the event [s]", ylabel="λ̄ [1/t0]",
+          title="does λ lead the event (shear) or lag it (drum)?")  # fmt: skip
+    a.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def fig4_chaos_map(fits: xr.Dataset) -> plt.Figure:
+    fig, axes = plt.subplots(1, 2, figsize=(10, 5))
+    xy = fits["snapshot_positions"].values
+    d = fits["diameter"].values
+    for ax, (name, label, cmap) in zip(axes, [("snapshot_du", "|δu_i| / max", "magma"),
+                                              ("snapshot_speed", "|v_i| [d_s/t0]", "jet")],
+                                       strict=True):  # fmt: skip
+        col = EllipseCollection(d, d, np.zeros_like(d), units="x", offsets=xy,
+                                offset_transform=ax.transData, cmap=cmap)  # fmt: skip
+        col.set_array(fits[name].values)
+        ax.add_collection(col)
+        ax.set_aspect("equal")
+        r = np.abs(xy).max() + 1.0
+        ax.set(xlim=(-r, r), ylim=(-r, r), title=label)
+        fig.colorbar(col, ax=ax, shrink=0.8)
+    fig.suptitle(f"where the chaos lives ({fits.attrs['point']}, one replica)")
+    return fig

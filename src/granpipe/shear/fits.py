@@ -1,0 +1,183 @@
+"""What Ref. [20] measured, at one φ and across φ (docs/shear.md, "Analysis").
+
+At one point (:func:`point_fits`):
+
+* ``lambda_mean`` — the time average of λ(t) over the record, per replica, averaged over
+  replicas (an estimate of the largest Lyapunov exponent of the sheared state); bootstrap
+  interval over replicas.
+* rearrangement events per replica (:func:`granpipe.shear.measures.rearrangement_events`)
+  and their rate.
+* the event-triggered average of λ (each replica's λ(t) aligned on each of its events,
+  pooled per replica: :func:`granpipe.analysis.events.align_on_many_events`), smoothed by
+  the drum paper's Eq. (2); ``event_lag`` — its first upward zero crossing that lasts
+  ``crossing_hold_s``, searched where enough events contribute, as the drum's aligned
+  onset lag (docs/drum.md, "Aligned on each pile's avalanche"): the same functions
+  (:func:`~granpipe.analysis.bootstrap.first_crossing`, moving average, bootstrap by
+  replica). ``lead_time`` = −``event_lag``: positive when λ̄ turns positive before the
+  events, as Ref. [20] reports.
+* ``correlation_*`` — C(|δu|, |v|) averaged over all samples, over the samples within
+  ``correlation_window_s`` of an event, and over the others.
+
+Across points (:func:`phi_crossing`): ``phi_lambda_zero`` — where ⟨λ⟩ first crosses zero
+in φ (the chaotic-to-non-chaotic transition of Ref. [20]), by linear interpolation between
+grid points; bootstrap over each point's replicas.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+import xarray as xr
+
+from ..analysis.bootstrap import FitResult, bootstrap_batches, bootstrap_replicas, first_crossing
+from ..analysis.ensemble import pooled_batch_mean
+from ..analysis.events import align_on_many_events
+from ..analysis.smoothing import moving_average, window_half_width
+from .measures import rearrangement_events
+
+__all__ = ["event_times", "point_fits", "phi_crossing"]
+
+
+def event_times(ds: xr.Dataset, events: Mapping) -> list[np.ndarray]:
+    """Per replica, the times [s] of its rearrangement events: the middle of the sample
+    interval in which a burst of at least ``min_changes`` edges starts after ``quiet_s``."""
+    dt = float(ds.attrs["sample_s"])
+    quiet = round(float(events["quiet_s"]) / dt)
+    t = ds["sample"].values - dt / 2.0
+    ch = ds["network_changes"].values
+    return [t[rearrangement_events(c, int(events["min_changes"]), quiet)] for c in ch]
+
+
+def _boot_kw(cfg):
+    return dict(n_resamples=int(cfg["bootstrap_resamples"]), level=float(cfg["confidence"]),
+                seed=int(cfg["seed"]))  # fmt: skip
+
+
+def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dataset]:
+    """The point's fitted numbers and curves from its runs (``ds``: batches concatenated
+    along ``replica``); ``params`` is the fits rule's subset."""
+    cfg = params["fits"]
+    lam = ds["local_lyapunov"].values
+    R = lam.shape[0]
+    per_replica = np.nanmean(lam, axis=1)
+    sem = float(per_replica.std(ddof=1) / math.sqrt(R)) if R > 1 else math.nan
+    res = [
+        FitResult(
+            "lambda_mean",
+            float(per_replica.mean()),
+            sem,
+            "1/t0",
+            n=R,
+            method="time average of λ(t) over the record, mean over replicas",
+        )
+    ]
+    if int(cfg["bootstrap_resamples"]) > 0 and R > 1:
+        res[0] = res[0].with_ci(bootstrap_replicas(per_replica[:, None], lambda m: m[:, 0],
+                                                   **_boot_kw(cfg)))  # fmt: skip
+    events = event_times(ds, params["events"])
+    n_ev = sum(len(e) for e in events)
+    record = float(ds["time"].values[-1] + ds.attrs["block_s"] / 2)
+    res.append(FitResult("event_rate", n_ev / (R * record), math.nan, "1/s", n=n_ev,
+                         method="rearrangement events per replica and second"))  # fmt: skip
+    t = ds["time"].values
+    tau, M, C = align_on_many_events(t, lam, events, float(cfg["aligned_before_s"]),
+                                     float(cfg["aligned_after_s"]))  # fmt: skip
+    _, Mv, _ = align_on_many_events(
+        t,
+        ds["global_speed"].values,
+        events,
+        float(cfg["aligned_before_s"]),
+        float(cfg["aligned_after_s"]),
+    )
+    q = window_half_width(float(cfg["moving_average_s"]), float(ds.attrs["block_s"]))
+    hold = round(float(cfg["crossing_hold_s"]) / float(ds.attrs["block_s"]))
+    mean, _, count = pooled_batch_mean(M, C)
+    mean_v, _, _ = pooled_batch_mean(Mv, C)
+    keep = count >= float(cfg["aligned_min_fraction"]) * max(n_ev, 1)
+    search = (tau[keep][0], tau[keep][-1]) if keep.any() else (np.nan, np.nan)
+
+    def lag(m):
+        return first_crossing(tau, moving_average(np.where(keep, m, np.nan), q), search, +1, hold)
+
+    lag_res = FitResult("event_lag", float(lag(mean)), math.nan, "s", n=n_ev,
+                        method="first lasting upward zero crossing of λ̄ (Eq. 2) of λ averaged "
+                        "over the events, each replica aligned on each of its own, minus the "
+                        "event")  # fmt: skip
+    units = np.flatnonzero(C.max(axis=1) > 0)
+    if int(cfg["bootstrap_resamples"]) > 0 and units.size > 1:
+        boot = bootstrap_batches(M[units], C[units], lambda m: lag(m), **_boot_kw(cfg))
+        lag_res = lag_res.with_ci(boot)
+    lead = FitResult("lead_time", -lag_res.value, math.nan, "s", ci_low=-lag_res.ci_high,
+                     ci_high=-lag_res.ci_low, ci_level=lag_res.ci_level, n=n_ev,
+                     n_resamples=lag_res.n_resamples, method="−event_lag: how long before the "
+                     "events λ̄ turns positive")  # fmt: skip
+    res += [lag_res, lead]
+    corr = ds["speed_lyapunov_correlation"].values
+    near = np.zeros(corr.shape, dtype=bool)
+    s = ds["sample"].values
+    window = float(cfg["correlation_window_s"])
+    for r, ev in enumerate(events):
+        if len(ev):
+            near[r] = (np.abs(s[:, None] - ev[None, :]) <= window).any(axis=1)
+    for name, m in (("all", np.ones_like(near)), ("events", near), ("quiet", ~near)):
+        v = corr[m & np.isfinite(corr)]
+        res.append(FitResult(f"correlation_{name}", float(v.mean()) if v.size else math.nan,
+                             float(v.std(ddof=1) / math.sqrt(v.size)) if v.size > 1 else math.nan,
+                             "1", n=int(v.size), method=f"mean of C(|δu|, |v|) over the "
+                             f"{name} samples"))  # fmt: skip
+    label = "time after each event"
+    curves = xr.Dataset(
+        {
+            "lambda_replica_mean": ("replica", per_replica, {"units": "1/t0", "long_name":
+                                    "time average of λ per replica"}),
+            "aligned_lambda": ("tau", mean, {"units": "1/t0", "long_name": "λ averaged over "
+                               "the events, each replica aligned on its own"}),
+            "aligned_lambda_bar": ("tau", moving_average(np.where(keep, mean, np.nan), q),
+                                   {"units": "1/t0", "long_name": "moving average (Eq. 2) of "
+                                    "the aligned λ, where enough events contribute"}),
+            "aligned_speed": ("tau", mean_v, {"units": "d_s/t0", "long_name": "V averaged over "
+                              "the events"}),
+            "aligned_count": ("tau", count, {"units": "1", "long_name": "events contributing"}),
+            "snapshot_positions": (("disk", "xy"), ds["snapshot_positions"].values[0],
+                                   ds["snapshot_positions"].attrs),
+            "snapshot_du": ("disk", ds["snapshot_du"].values[0], ds["snapshot_du"].attrs),
+            "snapshot_speed": ("disk", ds["snapshot_speed"].values[0],
+                               ds["snapshot_speed"].attrs),
+            "diameter": ("disk", ds["diameter"].values, ds["diameter"].attrs),
+        },
+        coords={"tau": ("tau", tau, {"units": "s", "long_name": label}),
+                "replica": ds["replica"]},
+    )  # fmt: skip
+    return res, curves
+
+
+def phi_crossing(phis, replica_means, cfg: Mapping) -> FitResult:
+    """φ where ⟨λ⟩ first crosses zero (either way: Ref. [20] finds it chaotic below the
+    crossing, not above; the direction is a result here), by linear interpolation between
+    the grid points; bootstrap over each point's replicas.
+
+    Parameters
+    ----------
+    phis : (P,) increasing; replica_means : P arrays (R_p,) [1/t0], each point's replicas
+    """
+    phis = np.asarray(phis, dtype=np.float64)
+    means = np.array([np.mean(m) for m in replica_means])
+    value = float(first_crossing(phis, means, None, 0))
+    res = FitResult("phi_lambda_zero", value, math.nan, "1", n=len(phis),
+                    method="first zero crossing in φ of the replica-mean time average "
+                    "of λ, linear between grid points")  # fmt: skip
+    n = int(cfg["bootstrap_resamples"])
+    if n > 0 and all(len(m) > 1 for m in replica_means):
+        rng = np.random.default_rng(int(cfg["seed"]))
+        boot = np.stack([[rng.choice(m, len(m)).mean() for m in replica_means] for _ in range(n)])
+        x = first_crossing(phis, boot, None, 0)
+        ok = np.isfinite(x)
+        a = (1.0 - float(cfg["confidence"])) / 2.0
+        if ok.any():
+            lo, hi = np.quantile(x[ok], [a, 1.0 - a])
+            res = FitResult(res.quantity, value, math.nan, "1", float(lo), float(hi),
+                            float(cfg["confidence"]), n=len(phis), n_resamples=n,
+                            n_failed=int((~ok).sum()), method=res.method)  # fmt: skip
+    return res

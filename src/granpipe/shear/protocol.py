@@ -1,0 +1,159 @@
+"""One replica of the shear cell, and a batch of them as a dataset (docs/shear.md).
+
+1. Preparation (:func:`granpipe.shear.preparation.grow`): placement, growth to φ, steady
+   shear for ``preparation.steady_s``.
+2. Tangent vector: about ``protocol.tangent_fraction`` of the 4N components uniform in
+   [−1, 1] (the drum paper's Sec. II.3, as the drum), evolved for
+   ``protocol.tangent_alignment_s`` before t = 0 so that it points along the fastest
+   growing direction.
+3. Record ``protocol.record_s`` from t = 0: block means of λ(t) (rattlers excluded: the
+   norm over disks with at least two contacts, as the drum) and V(t) over
+   ``protocol.block_s``; every ``protocol.sample_s`` the neighbour network's changes
+   since the sample before and the correlation C(|δu|, |v|) over the mobile disks
+   (:mod:`granpipe.shear.measures`), so nothing per disk and step is stored; at the end a
+   snapshot (positions, |δu_i|, |v_i|) for the figure of where the chaos lives.
+
+A replica's stream is ``replica_rng("shear", physics, replica)`` with ``physics`` the
+point's section: its first child places the disks, the second draws the tangent vector.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+import numpy as np
+import xarray as xr
+
+from ..errors import SimulationError
+from ..seeds import replica_rng, replica_seed
+from .measures import (
+    lyapunov_vector_magnitude,
+    neighbour_edges,
+    network_changes,
+    speed_lyapunov_correlation,
+)
+from .model import ShearCell
+from .preparation import grow
+
+__all__ = ["Steps", "steps", "run_replica", "run_batch"]
+
+
+class Steps:
+    """The protocol's times in engine steps (Δt = ``physics.dt`` t0)."""
+
+    def __init__(self, section: Mapping):
+        ph, pr = section["physics"], section["protocol"]
+        self.dt_s = float(ph["dt"]) * float(ph["t0_s"])
+        self.block = max(1, round(float(pr["block_s"]) / self.dt_s))
+        per = max(1, round(float(pr["sample_s"]) / self.dt_s / self.block))
+        self.sample = per * self.block  # a sample is whole blocks
+        self.n_samples = max(1, round(float(pr["record_s"]) / (self.sample * self.dt_s)))
+        self.align = round(float(pr["tangent_alignment_s"]) / self.dt_s)
+
+    @property
+    def n_blocks(self) -> int:
+        return self.n_samples * self.sample // self.block
+
+
+def steps(section: Mapping) -> Steps:
+    return Steps(section)
+
+
+def run_replica(section: Mapping, replica: int, log: Callable[[str], None] = lambda m: None):
+    """One replica at the section's point; returns a dict of its records (see module)."""
+    cell = ShearCell.from_physics(section["physics"])
+    st = Steps(section)
+    rng = replica_rng("shear", section["physics"], replica)
+    place, tangent = rng.spawn(2)
+    sim, state = grow(cell, section["preparation"], place)
+    n = cell.n_mobile
+    mask = tangent.random((n, 4)) < float(section["protocol"]["tangent_fraction"])
+    du = np.where(mask, tangent.uniform(-1.0, 1.0, (n, 4)), 0.0)
+    if not du.any():  # never the zero vector
+        du[0, 0] = 1.0
+    pad = np.zeros((len(cell.walls), 2))
+    sim.set_tangent(state, np.r_[du[:, :2], pad], np.r_[du[:, 2:], pad])
+    sim.run(state, st.align, tangent=True)
+    ev = section["events"]
+    radii = np.r_[cell.diameters, np.full(len(cell.walls), cell.physics["d_wall"])] / 2
+    mobile = np.arange(len(radii)) < n
+
+    def edges():
+        return neighbour_edges(state.positions, radii, mobile, float(ev["edge_cutoff"]))
+
+    lam = np.empty(st.n_blocks)
+    speed = np.empty(st.n_blocks)
+    changes = np.zeros(st.n_samples, dtype=np.int64)
+    corr = np.empty(st.n_samples)
+    before = edges()
+    per = st.sample // st.block
+    for k in range(st.n_samples):
+        rec = sim.run(state, st.sample, stride=st.block, tangent=True)
+        lam[k * per : (k + 1) * per] = rec.local_lyapunov
+        speed[k * per : (k + 1) * per] = rec.global_speed
+        after = edges()
+        changes[k] = network_changes(before, after)
+        before = after
+        dr, dv = state.tangent_stored
+        corr[k] = speed_lyapunov_correlation(state.velocities, dr, dv, mobile)
+    dr, dv = state.tangent_stored
+    du_mag = lyapunov_vector_magnitude(dr[:n], dv[:n])
+    log(f"replica {replica}: N = {n}, {st.n_samples} samples, "
+        f"{int((changes > 0).sum())} with network changes")  # fmt: skip
+    return {
+        "lam": lam, "speed": speed, "changes": changes, "corr": corr,
+        "positions": state.positions[:n].copy(), "du": du_mag / max(du_mag.max(), 1e-300),
+        "v": np.hypot(*state.velocities[:n].T), "diameters": cell.diameters,
+    }  # fmt: skip
+
+
+def run_batch(section: Mapping, replicas, log: Callable[[str], None] = lambda m: None):
+    """The replicas' records as one dataset (dims replica, time, sample, disk); a blow-up
+    names replica, seed and step (SimulationError)."""
+    out = []
+    for r in replicas:
+        try:
+            out.append(run_replica(section, r, log))
+        except SimulationError as exc:
+            seed = replica_seed("shear", section["physics"], r)
+            raise exc.with_context(study="shear", stage="runs", replica=int(r), seed=seed) from None
+    st = Steps(section)
+    t0 = float(section["physics"]["t0_s"])
+    time = (np.arange(st.n_blocks) + 0.5) * st.block * st.dt_s
+    sample = (np.arange(st.n_samples) + 1) * st.sample * st.dt_s
+
+    def stack(key):
+        return np.stack([o[key] for o in out])
+
+    dims = ("replica", "time")
+    ds = xr.Dataset(
+        {
+            "local_lyapunov": (dims, stack("lam"), {"units": "1/t0", "long_name":
+                               "block mean of the local Lyapunov exponent λ(t)"}),
+            "global_speed": (dims, stack("speed"), {"units": "d_s/t0", "long_name":
+                             "block mean of V(t) = sqrt(Σ|v_i|²) over the mobile disks"}),
+            "network_changes": (("replica", "sample"), stack("changes"), {"units": "1",
+                                "long_name": "neighbour-network edges changed since the "
+                                "sample before"}),
+            "speed_lyapunov_correlation": (("replica", "sample"), stack("corr"), {"units": "1",
+                                           "long_name": "Pearson correlation of |δu_i| and "
+                                           "|v_i| over the mobile disks"}),
+            "snapshot_positions": (("replica", "disk", "xy"), stack("positions"), {"units":
+                                   "d_s", "long_name": "disk centres at the record's end"}),
+            "snapshot_du": (("replica", "disk"), stack("du"), {"units": "1", "long_name":
+                            "|δu_i| at the record's end over its largest"}),
+            "snapshot_speed": (("replica", "disk"), stack("v"), {"units": "d_s/t0",
+                               "long_name": "|v_i| at the record's end"}),
+            "diameter": (("disk",), out[0]["diameters"], {"units": "d_s", "long_name":
+                         "disk diameter"}),
+        },
+        coords={
+            "replica": ("replica", np.asarray(list(replicas), np.int64), {"units": "1",
+                        "long_name": "replica index"}),
+            "time": ("time", time, {"units": "s", "long_name": "block centre after t = 0"}),
+            "sample": ("sample", sample, {"units": "s", "long_name": "sample time after t = 0"}),
+        },
+    )  # fmt: skip
+    ds.attrs.update(t0_s=t0, block_s=st.block * st.dt_s, sample_s=st.sample * st.dt_s,
+                    n_mobile=len(out[0]["diameters"]))  # fmt: skip
+    return ds, [replica_seed("shear", section["physics"], r) for r in replicas]

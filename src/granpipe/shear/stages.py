@@ -1,0 +1,144 @@
+"""The shear study's stages as file-to-file functions (the CLI calls these; rules call the
+CLI; docs/architecture.md, "Stages"). Outputs under ``results/<scale>/shear/``:
+
+* runs:    :func:`runs_stage` — one batch of replicas of one φ (preparation and record)
+* fits:    :func:`fits_stage` — a point's numbers and curves from its batches (the shear
+           cell has no ensemble stage: its event-triggered averages need every replica's
+           record, and the fits read them batch by batch)
+* summary: :func:`summary_stage` — every point's rows and the zero crossing of ⟨λ⟩ in φ
+* figures: :func:`figures_stage` — Figs. 1-4 (docs/shear.md, "Figures")
+
+Every input is checked against what the stage derives from its own ``--params``: study,
+stage, point and config hash; a point's batches must hold each replica 0 … n−1 once.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from ..io import RunFileError, check_run_files, expect_input, read_dataset, write_dataset
+
+__all__ = ["runs_stage", "fits_stage", "summary_stage", "figures_stage"]
+
+
+def _log(msg):
+    print(f"[shear {time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
+
+
+def runs_stage(params: Mapping, batch: int, out) -> Path:
+    """One batch of replicas of the point ``params["point"]``."""
+    from ..seeds import batch_replicas
+    from .protocol import run_batch
+
+    t0 = time.time()
+    reps = list(batch_replicas(batch, int(params["batch_size"])))
+    _log(f"{params['point']} batch {batch}: replicas {reps}")
+    ds, seeds = run_batch(params, reps, _log)
+    path = write_dataset(ds, out, config_subset=params, seeds=seeds, study="shear",
+                         stage="runs", point=params["point"], batch=int(batch),
+                         wall_time_s=time.time() - t0)  # fmt: skip
+    _log(f"wrote {path} ({time.time() - t0:.1f} s)")
+    return path
+
+
+def fits_stage(params: Mapping, run_files: Sequence, out) -> Path:
+    """The point's fits (:func:`granpipe.shear.fits.point_fits`) from its run files."""
+    from ..analysis.summary import results_dataset
+    from .fits import point_fits
+
+    point, n = params["point"], int(params["n_replicas"])
+    labels = check_run_files(run_files, study="shear", point=point,
+                             config_hash=params["runs_config_hash"])  # fmt: skip
+    have = sorted(r for lab in labels for r in lab["replicas"])
+    if have[:n] != list(range(n)):
+        raise RunFileError(f"the run files of {point} hold replicas {have}, not 0 .. {n - 1}")
+    parts = [read_dataset(p) for p in run_files]
+    ds = (
+        xr.concat(
+            parts, dim="replica", data_vars="minimal", coords="minimal", combine_attrs="override"
+        )
+        .sortby("replica")
+        .isel(replica=slice(0, n))
+    )
+    results, curves = point_fits(ds, params)
+    fits = xr.merge([results_dataset(results), curves])
+    fits.attrs["quantities"] = " ".join(r.quantity for r in results)
+    path = write_dataset(fits, out, config_subset=params, study="shear", stage="fits",
+                         point=point, phi=float(point.split("=")[1]))  # fmt: skip
+    _log(f"wrote {path}")
+    return path
+
+
+def _fits_files(params: Mapping, paths: Sequence) -> dict[str, xr.Dataset]:
+    """Each point's fits file, once, computed from the subset ``params["points"]`` names."""
+    want, seen = params["points"], {}
+    for p in paths:
+        ds = read_dataset(p)
+        point = str(ds.attrs.get("point"))
+        if point not in want:
+            raise RunFileError(f"{p} holds the fits of {point}, not a point of this config")
+        if Path(p).stem != point:
+            raise RunFileError(f"{p} holds the fits of {point}, not of {Path(p).stem}")
+        if point in seen:
+            raise RunFileError(f"point {point} appears twice")
+        expect_input(ds, p, study="shear", stage="fits", point=point, config_hash=want[point])
+        seen[point] = ds
+    missing = [pt for pt in want if pt not in seen]
+    if missing:
+        raise RunFileError(f"no fits file of the point(s) {', '.join(missing)}")
+    return {pt: seen[pt] for pt in sorted(seen, key=lambda s: float(s.split("=")[1]))}
+
+
+def summary_stage(params: Mapping, fits_files: Sequence, out) -> Path:
+    """summary.csv: each point's rows (quantity ``<name>[phi=...]``) and
+    ``phi_lambda_zero``."""
+    from ..analysis.summary import results_rows, write_summary
+    from .fits import phi_crossing
+
+    fits = _fits_files(params, fits_files)
+    rows = []
+    for point, ds in fits.items():
+        for row in results_rows(ds, "shear"):
+            rows.append({**row, "quantity": f"{row['quantity']}[{point}]"})
+    phis = [float(ds.attrs["phi"]) for ds in fits.values()]
+    means = [ds["lambda_replica_mean"].values for ds in fits.values()]
+    rows.append(phi_crossing(phis, means, params).to_row("shear"))
+    path = write_summary(rows, out, merge=False)
+    _log(f"wrote {len(rows)} rows to {path}")
+    return path
+
+
+def figures_stage(params: Mapping, fits_files: Sequence, out_dir, drum_fits=None) -> list:
+    """Figs. 1-4 (PNG and PDF); the contrast figure takes the drum's reference fits file
+    when the scale runs the drum (``drum_fits``), else shows the shear cell alone."""
+    from ..figures import save_figure
+    from ..figures import shear as F
+
+    fits = _fits_files(params, fits_files)
+    drum = None
+    if drum_fits is not None:
+        drum = read_dataset(drum_fits)
+        expect_input(drum, drum_fits, study="drum", stage="fits")
+    phi = params["contrast_phi"]
+    if phi is None:  # the largest φ with a lead time
+        have = [pt for pt, ds in fits.items() if np.isfinite(float(ds["event_lag"]))]
+        phi = float((have or list(fits))[-1].split("=")[1])
+    chosen = fits.get(f"phi={float(phi):g}")
+    if chosen is None:
+        raise RunFileError(f"figures.contrast_phi = {phi} is not a point of this config")
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    dpi = int(params["dpi"])
+    paths = []
+    paths += save_figure(F.fig1_lambda_vs_phi(fits), out_dir / "fig1_lambda_vs_phi", dpi)
+    paths += save_figure(F.fig2_event_triggered(fits), out_dir / "fig2_event_triggered", dpi)
+    paths += save_figure(F.fig3_contrast(chosen, drum), out_dir / "fig3_contrast", dpi)
+    paths += save_figure(F.fig4_chaos_map(chosen), out_dir / "fig4_chaos_map", dpi)
+    _log(f"wrote {len(paths)} figure files to {out_dir}")
+    return paths
