@@ -3,7 +3,12 @@
 import numpy as np
 import pytest
 
-from granpipe.analysis.events import align_on_events, event_aligned_average, first_run
+from granpipe.analysis.events import (
+    align_on_events,
+    align_on_many_events,
+    event_aligned_average,
+    first_run,
+)
 
 
 def test_first_run_finds_the_first_long_enough_run():
@@ -61,3 +66,20 @@ def test_alignment_places_off_grid_events_on_the_nearest_sample_and_counts_cover
     np.testing.assert_array_equal(count, np.r_[np.full(15, 2), np.full(6, 1)])
     np.testing.assert_allclose(mean[15:], 2.0 + tau[15:], atol=1e-12)  # replica 0 alone
     np.testing.assert_allclose(mean[:15], 0.5 * (2.0 + 9.5) + tau[:15], atol=1e-12)
+
+
+def test_align_on_many_events_pools_each_replica_over_its_own_events():
+    """A bump f(t − e) at each event e: every replica's mean over its events is f itself,
+    the counts are its events that reach each τ (one fewer where one lies too close to the
+    record's end), a replica without events is NaN with count 0."""
+    t = np.arange(1000) * 0.01
+    f = lambda x: np.exp(-(x**2) / 0.02)  # noqa: E731
+    events = [np.array([2.0, 5.0, 9.5]), np.array([], float), np.array([3.0])]
+    Y = np.stack([sum((f(t - e) for e in ev), np.zeros_like(t)) for ev in events])
+    tau, means, counts = align_on_many_events(t, Y, events, 0.5, 0.8)
+    assert tau[0] == pytest.approx(-0.5) and tau[-1] == pytest.approx(0.8)
+    np.testing.assert_allclose(means[0], f(tau), atol=1e-12)
+    np.testing.assert_allclose(means[2], f(tau), atol=1e-12)
+    assert np.all(np.isnan(means[1])) and not counts[1].any()
+    # the event at 9.5 s reaches τ <= 0.49 only (the record ends at 9.99 s)
+    np.testing.assert_array_equal(counts[0], np.where(tau <= 0.495, 3, 2))
