@@ -85,6 +85,18 @@ KNOBS = {
         figure_rule="column_figures",
         batch_glob="runs/relaxation/batch_*.nc",
     ),
+    "shear": Knobs(
+        fit_key=("fits", "moving_average_s"),
+        fit_value=0.2,
+        timestep_key=("physics", "dt"),
+        replicas_key=("ensemble", "n_replicas"),
+        batch_size_key=("ensemble", "batch_size"),
+        grow_rules=frozenset({"shear_runs"}),
+        sim_rules=frozenset({"shear_runs"}),
+        fit_rules=frozenset({"shear_fits", "shear_summary", "shear_figures"}),
+        figure_rule="shear_figures",
+        batch_glob="runs/*/batch_*.nc",
+    ),
 }
 
 
@@ -269,6 +281,29 @@ def test_adding_a_drum_period_plans_only_its_point(quick):
     assert added == {"drum_init": n, "drum_runs": n, "drum_ensemble": 1, "drum_fits": 1}, (
         before, jobs,
     )  # fmt: skip
+
+
+def test_adding_a_packing_fraction_plans_only_its_point(quick):
+    """A second φ of the shear cell is its own point: only its batches and fits, and the
+    summary and figures that gather every point, are planned."""
+    workdir, base = quick
+    if "shear" not in studies(base):
+        pytest.skip("the shear study is not part of this scale")
+    one = copy.deepcopy(base)
+    one["studies"] = ["shear"]
+    two = copy.deepcopy(one)
+    phi = two["shear"]["physics"]["phi"]
+    two["shear"]["physics"]["phi"] = [*(phi if isinstance(phi, list) else [phi]), 0.7]
+    before = planned_jobs(workdir, write_config(workdir, one, "one_phi.yaml"))
+    jobs = planned_jobs(workdir, write_config(workdir, two, "two_phi.yaml"))
+    ens = base["shear"]["ensemble"]
+    added = {k: jobs.get(k, 0) - before.get(k, 0) for k in set(jobs) | set(before)}
+    added = {k: v for k, v in added.items() if v}
+    for gathering in ("shear_summary", "shear_figures", "all"):
+        assert jobs.get(gathering) == 1
+        added.pop(gathering, None)
+    n = -(-ens["n_replicas"] // ens["batch_size"])
+    assert added == {"shear_runs": n, "shear_fits": 1}, (before, jobs)
 
 
 def test_adding_a_wall_friction_plans_only_its_points(quick):

@@ -22,16 +22,12 @@ wildcard_constraints:
     shear_batch=r"\d{4}",
 
 
-def shear_point(w):
-    return shear_layout.point_name(float(w.shear_phi))
-
-
 rule shear_runs:
     """One batch of replicas at one packing fraction: preparation and record."""
     output:
         out("shear", "runs", "phi={shear_phi}", "batch_{shear_batch}.nc"),
     params:
-        json=lambda w: as_json(shear_layout.runs_params(SHEAR, shear_point(w))),
+        json=lambda w: as_json(shear_layout.runs_params(SHEAR, shear_layout.point_name(w.shear_phi))),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -48,11 +44,11 @@ rule shear_runs:
 rule shear_fits:
     """A point's ⟨λ⟩, rearrangements, event-triggered λ̄ and lead time, correlations."""
     input:
-        lambda w: [out("shear", shear_layout.run_file(shear_point(w), b)) for b in SHEAR_BATCHES],
+        lambda w: [out("shear", shear_layout.run_file(shear_layout.point_name(w.shear_phi), b)) for b in SHEAR_BATCHES],
     output:
         out("shear", "fits", "phi={shear_phi}.nc"),
     params:
-        json=lambda w: as_json(shear_layout.fits_params(SHEAR, shear_point(w))),
+        json=lambda w: as_json(shear_layout.fits_params(SHEAR, shear_layout.point_name(w.shear_phi))),
     conda:
         "../envs/granpipe.yaml"
     log:

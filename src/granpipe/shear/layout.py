@@ -23,7 +23,8 @@ __all__ = ["check", "FIGURES", "point_name", "phis", "points", "batches", "run_f
 FIGURES = ("fig1_lambda_vs_phi", "fig2_event_triggered", "fig3_contrast", "fig4_chaos_map")
 
 
-def point_name(phi: float) -> str:
+def point_name(phi: float | str) -> str:
+    """``phi=<φ>`` (a wildcard's text or a number)."""
     return f"phi={float(phi):g}"
 
 

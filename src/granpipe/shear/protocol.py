@@ -116,7 +116,9 @@ def run_batch(section: Mapping, replicas, log: Callable[[str], None] = lambda m:
             out.append(run_replica(section, r, log))
         except SimulationError as exc:
             seed = replica_seed("shear", section["physics"], r)
-            raise exc.with_context(study="shear", stage="runs", replica=int(r), seed=seed) from None
+            point = f"phi={float(section['physics']['phi']):g}"
+            raise exc.with_context(study="shear", stage="runs", point=point, replica=int(r),
+                                   seed=seed) from None  # fmt: skip
     st = Steps(section)
     t0 = float(section["physics"]["t0_s"])
     time = (np.arange(st.n_blocks) + 0.5) * st.block * st.dt_s
