@@ -7,12 +7,11 @@ import math
 import numpy as np
 import pytest
 
+from granpipe.analysis.lyapunov import lyapunov_vector_magnitude, speed_lyapunov_correlation
 from granpipe.shear.measures import (
-    lyapunov_vector_magnitude,
     neighbour_edges,
     network_changes,
     rearrangement_events,
-    speed_lyapunov_correlation,
 )
 
 R_IN, R_OUT = 5.0, 11.0  # the annulus' walls [d_s]

@@ -20,11 +20,6 @@ Reduced units: lengths in d_s (the small disk's diameter), times in t0.
   threshold ``min_changes`` above 2 asks for more than one such flip.
 * :func:`rearrangement_events` — the starts of bursts of changes after a quiet spell
   (a window-count by cumulative sums, as :func:`granpipe.analysis.events.first_run`).
-* :func:`lyapunov_vector_magnitude`, :func:`speed_lyapunov_correlation` — the per-disk
-  size of the Lyapunov (tangent) vector, |δu_i| = sqrt(|δr_i|² + |δv_i|²) in reduced
-  units, and its Pearson correlation over the mobile disks with the speed |v_i|: the
-  spatial correlation C(|δu|, |v|) that Banigan et al. (Nature Phys. 9, 288 (2013))
-  measured in the shear cell and Wang & Zhang (Sci. Rep. 5, 8128 (2015)) in a drum.
 
 Plain numpy and scipy; nothing here runs the engine.
 """
@@ -38,8 +33,6 @@ __all__ = [
     "neighbour_edges",
     "network_changes",
     "rearrangement_events",
-    "lyapunov_vector_magnitude",
-    "speed_lyapunov_correlation",
 ]
 
 
@@ -115,45 +108,3 @@ def rearrangement_events(changes: np.ndarray, min_changes: int, quiet: int) -> n
     k = np.arange(quiet, S, dtype=np.int64)
     before = c[k] - c[k - quiet]  # active samples in [k - quiet, k)
     return k[active[k] & (before == 0)]
-
-
-def lyapunov_vector_magnitude(tangent_r: np.ndarray, tangent_v: np.ndarray) -> np.ndarray:
-    """|δu_i| = sqrt(|δr_i|² + |δv_i|²) per disk, reduced units.
-
-    ``tangent_r`` (N, 2) [d_s] and ``tangent_v`` (N, 2) [d_s/t0]: the position and
-    velocity parts of the Lyapunov (tangent) vector. Returns (N,) float.
-    """
-    dr = np.asarray(tangent_r, dtype=float)
-    dv = np.asarray(tangent_v, dtype=float)
-    return np.sqrt(np.sum(dr * dr, axis=-1) + np.sum(dv * dv, axis=-1))
-
-
-def speed_lyapunov_correlation(
-    velocities: np.ndarray, tangent_r: np.ndarray, tangent_v: np.ndarray, mobile: np.ndarray
-) -> float:
-    """Pearson correlation C(|δu|, |v|) over the mobile disks.
-
-    Parameters
-    ----------
-    velocities : (N, 2) float
-        Disk velocities [d_s/t0].
-    tangent_r, tangent_v : (N, 2) float
-        The Lyapunov vector's parts, as in :func:`lyapunov_vector_magnitude`.
-    mobile : (N,) bool
-        Only these disks enter.
-
-    Returns
-    -------
-    float in [−1, 1]; NaN with fewer than 3 mobile disks or if |v| or |δu| takes a
-    single value over them (zero spread).
-    """
-    mob = np.asarray(mobile, dtype=bool)
-    if np.count_nonzero(mob) < 3:
-        return float("nan")
-    speed = np.hypot(*np.asarray(velocities, dtype=float)[mob].T)
-    du = lyapunov_vector_magnitude(np.asarray(tangent_r)[mob], np.asarray(tangent_v)[mob])
-    if np.ptp(speed) == 0 or np.ptp(du) == 0:
-        return float("nan")
-    x, y = speed - speed.mean(), du - du.mean()
-    r = np.sum(x * y) / np.sqrt(np.sum(x * x) * np.sum(y * y))
-    return float(np.clip(r, -1.0, 1.0))

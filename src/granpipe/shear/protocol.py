@@ -24,14 +24,10 @@ from collections.abc import Callable, Mapping
 import numpy as np
 import xarray as xr
 
+from ..analysis.lyapunov import lyapunov_vector_magnitude, speed_lyapunov_correlation
 from ..errors import SimulationError
 from ..seeds import replica_rng, replica_seed
-from .measures import (
-    lyapunov_vector_magnitude,
-    neighbour_edges,
-    network_changes,
-    speed_lyapunov_correlation,
-)
+from .measures import neighbour_edges, network_changes
 from .model import ShearCell
 from .preparation import grow
 
