@@ -100,10 +100,12 @@ def synthetic_pile_runs(tmp_path, flows, *, stops=None, lag_on=3.0, lag_de=1.5, 
             s_flow = 5.0 + stops[r]
             v_de = RIGID * np.where(t_de < s_flow, 1.4, 0.5)
             lam_de = -0.1 * (t_de - s_flow - lag_de) + noise * rng.standard_normal(n_de)
+            # tilt, centroid angle, rigid speed and C(|du|, |v|) (0.2 + 0.01 r, 0.4)
             pile_on = np.stack([1.0 + 0.35 * p_on, 0.9 + 0.35 * p_on,
-                                np.full(p_on.size, RIGID)], -1)  # fmt: skip
+                                np.full(p_on.size, RIGID), np.full(p_on.size, 0.2 + 0.01 * r)],
+                               -1)  # fmt: skip
             pile_de = np.stack([np.full(p_de.size, 8.0), np.full(p_de.size, 8.0),
-                                np.full(p_de.size, RIGID)], -1)  # fmt: skip
+                                np.full(p_de.size, RIGID), np.full(p_de.size, 0.4)], -1)  # fmt: skip
             recs.append(
                 ReplicaRecord(
                     replica=r, seed=r, lambda_onset=lam_on, speed_onset=v_on,

@@ -371,6 +371,12 @@ def test_aligned_lags_recover_the_lag_behind_each_replicas_own_event(pile_runs):
     assert count.values.min() < 12
     # the plain ensemble mean crosses zero late: it waits for the average replica
     assert r["onset_lambda_bar_zero_time"].value > np.mean(FLOWS)
+    # where the chaos lives: each replica's C(|du|, |v|) averaged over its window's
+    # samples (0.2 + 0.01 r at the onset, 0.4 at the decay), then over replicas
+    c_on, c_de = r["correlation_onset"], r["correlation_decay"]
+    assert c_on.value == pytest.approx(0.2 + 0.01 * np.mean(np.arange(12)), abs=1e-12)
+    assert c_on.fit_error == pytest.approx(0.01 * np.std(np.arange(12), ddof=1) / np.sqrt(12))
+    assert c_de.value == pytest.approx(0.4, abs=1e-12) and c_de.n == 12
 
 
 def test_aligned_rows_say_how_many_replicas_never_flowed(tmp_path):

@@ -973,7 +973,8 @@ class PileRecords:
     events : dict of (R,) arrays over every kept replica: ``startup_end``,
         ``first_burst``, ``flow_onset`` [s after t = 0], ``flow_stop`` [s after the start
         of the decay window], ``tilt_t0``, ``startup_end_tilt``, ``first_burst_tilt``,
-        ``flow_onset_tilt`` [degree], ``replica`` (index)
+        ``flow_onset_tilt`` [degree], ``replica`` (index), and (run files that record it)
+        ``correlation_onset``/``correlation_decay``, each replica's mean C(|δu|, |v|)
     tau : {"onset", "decay"} (L,) [s], block centre minus the event time
     aligned : {"onset", "decay"} -> (speed, lambda, tilt), each (units, L)
     counts : {"onset", "decay"} -> (units, L) replicas per batch (batch units) or None
@@ -1048,6 +1049,11 @@ def load_pile(
             stop_time = float(ds.attrs["stop_time_s"])
             out = {"replica": ds["replica"].values[ok]}
             for w in WINDOWS:
+                corr = ds.get(f"speed_lyapunov_correlation_{w}")
+                if corr is not None:  # each replica's mean over the window's samples
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN row
+                        out[f"correlation_{w}"] = np.nanmean(corr.values[ok], axis=1)
                 t = ds[f"seconds_{w}"].values
                 tp = ds[f"seconds_pile_{w}"].values
                 V = ds[f"speed_{w}"].transpose("replica", f"time_{w}").values[ok]
@@ -1275,7 +1281,8 @@ def pile_fits(pile: PileRecords, ens: xr.Dataset, fits_cfg: Mapping,
         ``first_burst_time``/``_tilt``, ``flow_onset_time``/``_tilt`` (and ``_sd``, the
         spread between replicas), ``flow_onset_reached`` (fraction of the replicas),
         ``decay_flow_stop_time`` (after the drum's stop), ``onset_lag_aligned`` and
-        ``decay_lag_aligned`` [s] with the aligned tilt at λ̄'s crossing (``_tilt``)
+        ``decay_lag_aligned`` [s] with the aligned tilt at λ̄'s crossing (``_tilt``),
+        ``correlation_onset``/``correlation_decay`` (where the run files record them)
     curves : Dataset with the aligned averages on ``tau_onset``/``tau_decay`` [s], their
         counts, the ensemble-mean tilt on ``time_onset``/``time_decay`` and the
         per-replica event times on ``event_replica``
@@ -1286,6 +1293,15 @@ def pile_fits(pile: PileRecords, ens: xr.Dataset, fits_cfg: Mapping,
     hold = _hold_samples(ens, cfg)
     stop = float(ens.attrs["stop_time_s"])
     results = _event_results(pile, cfg, stop)
+    for w in WINDOWS:
+        c = pile.events.get(f"correlation_{w}", np.array([]))
+        c = c[np.isfinite(c)]
+        if c.size:
+            sem = float(c.std(ddof=1) / math.sqrt(c.size)) if c.size > 1 else math.nan
+            results.append(FitResult(f"correlation_{w}", float(c.mean()), sem, "1", n=c.size,
+                                     method=f"C(|δu|, |v|) over the mobile disks, mean over "
+                                     f"the pile's samples of the {w} window, then over "
+                                     "replicas (where the chaos lives)"))  # fmt: skip
     out = xr.Dataset()
     for w in WINDOWS:
         res, extra = _aligned_analysis(pile, w, cfg, q, hold)

@@ -23,6 +23,10 @@ variable                  dims                    units   meaning
 ``tilt_decay``, ...       (replica, pile_decay)           the same, decay window
 ========================  ======================  ======  ===================================
 
+``speed_lyapunov_correlation_onset`` (replica, pile_onset) and ``..._decay`` [1] hold the
+correlation C(|δu_i|, |v_i|) over the mobile disks at the pile's samples (where the chaos
+lives; :mod:`granpipe.analysis.lyapunov`).
+
 The pile's state is sampled at t = 0 of each window and then every
 ``protocol.pile_sample_s`` (0.1 s) and at the window's end: an instantaneous value at
 the end of a stretch of whole blocks, computed between two engine calls (the engine
@@ -37,7 +41,9 @@ exactly [kBΔt, (k+1)BΔt]); ``seconds_onset``/``seconds_decay`` the same in sec
 
 The first replica of each batch also stores Fig. 2-style snapshots:
 ``snapshot_position``/``snapshot_velocity`` (snapshot, particle, xy),
-``wall_position`` (snapshot, wall, xy), ``diameter`` (particle), ``wall_diameter``.
+``wall_position`` (snapshot, wall, xy), ``diameter`` (particle), ``wall_diameter``, and
+``snapshot_du`` (snapshot, particle): each disk's |δu_i| over the largest (NaN before the
+tangent vector is set).
 """
 
 from __future__ import annotations
@@ -51,6 +57,7 @@ import numpy as np
 import xarray as xr
 
 from ..analysis.events import first_run
+from ..analysis.lyapunov import speed_lyapunov_correlation
 
 if TYPE_CHECKING:
     from .layout import Steps
@@ -133,6 +140,7 @@ class Snapshot:
     positions, velocities : (N, 2) float64 [d_s], [d_s/t0]
     wall_positions : (n, 2) float64 [d_s]
     label : str; description : str
+    du : (N,) float64, |δu_i| over its largest (NaN without a tangent vector)
     """
 
     positions: np.ndarray
@@ -140,6 +148,7 @@ class Snapshot:
     wall_positions: np.ndarray
     label: str
     description: str = ""
+    du: np.ndarray | None = None
 
 
 @dataclass
@@ -161,7 +170,8 @@ class ReplicaRecord:
     n_steps: int = 0
     snapshots: list[Snapshot] = field(default_factory=list)
     pile_onset: np.ndarray | None = None
-    """(S, 3): tilt [degree], centroid angle [degree], rigid speed [d_s/t0] per sample."""
+    """(S, 4): tilt [degree], centroid angle [degree], rigid speed [d_s/t0] and
+    C(|δu|, |v|) per sample."""
     pile_seconds_onset: np.ndarray | None = None
     """(S,) [s] the samples' times after the start of the onset window."""
     pile_decay: np.ndarray | None = None
@@ -295,6 +305,12 @@ def batch_dataset(
             np.stack([s.velocities for s in snaps]),
             {"units": "d_s/t0", "long_name": "mobile-disk velocity"},
         )
+        if all(s.du is not None for s in snaps):
+            ds["snapshot_du"] = (
+                ("snapshot", "particle"),
+                np.stack([s.du for s in snaps]),
+                {"units": "1", "long_name": "|δu_i| of the Lyapunov vector over its largest"},
+            )
         ds["wall_position"] = (
             ("snapshot", "wall", "xy"),
             np.stack([s.wall_positions for s in snaps]),
@@ -331,6 +347,8 @@ _PILE = (
      "straight down, in the drum's sense"),
     ("rigid_speed", "d_s/t0", "Omega sqrt(sum_i r_i^2): V of the mobile disks turning rigidly "
      "at the drum's rate"),
+    ("speed_lyapunov_correlation", "1", "Pearson correlation of |du_i| and |v_i| over the "
+     "mobile disks (granpipe.analysis.lyapunov)"),
 )  # fmt: skip
 
 
@@ -451,9 +469,16 @@ def stop_events(seconds, speed, pile_seconds, rigid, *, block: int, stop_time: f
     return np.where(i >= 0, start[np.clip(i, 0, len(start) - 1)], np.nan)
 
 
-def pile_sample(model: DrumModel, state, omega: float) -> tuple[float, float, float]:
-    """(tilt [degree], centroid angle [degree], rigid speed [d_s/t0]) of the pile in an
-    engine state (:func:`pile_state`, :meth:`~granpipe.drum.model.DrumModel.rigid_speed`)."""
+def pile_sample(model: DrumModel, state, omega: float) -> tuple[float, float, float, float]:
+    """(tilt [degree], centroid angle [degree], rigid speed [d_s/t0], C(|δu|, |v|)) of the
+    pile in an engine state (:func:`pile_state`,
+    :meth:`~granpipe.drum.model.DrumModel.rigid_speed`,
+    :func:`granpipe.analysis.lyapunov.speed_lyapunov_correlation`; NaN without a tangent
+    vector)."""
     n = model.n_mobile
     tilt, centroid = pile_state(state.positions[:n], 0.5 * model.diameters, model.masses)
-    return tilt, centroid, model.rigid_speed(state, omega)
+    corr = np.nan
+    if state.has_tangent:
+        dr, dv = state.tangent_stored
+        corr = speed_lyapunov_correlation(state.velocities[:n], dr[:n], dv[:n], np.ones(n, bool))
+    return tilt, centroid, model.rigid_speed(state, omega), corr

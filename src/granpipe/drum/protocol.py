@@ -72,6 +72,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import xarray as xr
 
+from ..analysis.lyapunov import lyapunov_vector_magnitude
 from ..errors import SimulationError
 from ..seeds import batch_replicas, replica_rng, replica_seed
 from .layout import Steps, filled, load, point_name, seed_physics, steps
@@ -166,12 +167,18 @@ class Progress:
 
 # --------------------------------------------------------------------------- protocol
 def _snapshot(model, state, label, description):
+    n = model.n_mobile
+    du = np.full(n, np.nan)
+    if state.has_tangent:
+        du = lyapunov_vector_magnitude(*(x[:n] for x in state.tangent_stored))
+        du = du / max(float(du.max()), 1e-300)
     return Snapshot(
-        positions=state.positions[: model.n_mobile].copy(),
-        velocities=state.velocities[: model.n_mobile].copy(),
-        wall_positions=state.positions[model.n_mobile :].copy(),
+        positions=state.positions[:n].copy(),
+        velocities=state.velocities[:n].copy(),
+        wall_positions=state.positions[n:].copy(),
         label=label,
         description=description,
+        du=du,
     )
 
 

@@ -29,9 +29,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
-from matplotlib.collections import EllipseCollection  # noqa: E402
 
 from ..analysis.smoothing import moving_average  # noqa: E402
+from . import disk_map  # noqa: E402
 
 __all__ = [
     "fig2_snapshot",
@@ -316,64 +316,37 @@ def fig7_lag_vs_rotation(
 
 
 def fig2_snapshot(run: xr.Dataset) -> plt.Figure:
-    """Fig. 2-style snapshots of one replica, disks coloured by speed (blue slow, red fast).
+    """Fig. 2-style snapshots of one replica, disks coloured by speed (blue slow, red fast);
+    beyond the paper, a second row with the same disks coloured by their part of the
+    Lyapunov vector |δu_i| (where the chaos lives), when the run file holds it.
 
     Parameters
     ----------
     run : a run file holding ``snapshot_position``/``snapshot_velocity``
         (snapshot, particle, xy), ``diameter`` (particle), ``wall_position``
-        (snapshot, wall, xy) and ``wall_diameter``.
+        (snapshot, wall, xy), ``wall_diameter`` and optionally ``snapshot_du``.
     """
     snaps = list(run["snapshot"].values)
-    fig, axes = plt.subplots(1, len(snaps), figsize=(4.6 * len(snaps), 4.4), layout="constrained")
-    axes = np.atleast_1d(axes)
+    du = run["snapshot_du"].values if "snapshot_du" in run else None
+    rows = 2 if du is not None and np.isfinite(du).any() else 1
+    fig, axes = plt.subplots(rows, len(snaps), figsize=(4.6 * len(snaps), 4.4 * rows),
+                             layout="constrained", squeeze=False)  # fmt: skip
     d = run["diameter"].values
     dw = float(run["wall_diameter"].values)
     titles = run["snapshot"].attrs.get("descriptions", "").split(";")
-    for k, ax in enumerate(axes):
+    units = run["snapshot_velocity"].attrs.get("units", "")
+    for k in range(len(snaps)):
         pos = run["snapshot_position"].values[k]
         vel = run["snapshot_velocity"].values[k]
         wall = run["wall_position"].values[k]
-        speed = np.hypot(vel[:, 0], vel[:, 1])
-        cmap = plt.get_cmap("jet")
-        # a few fast rattlers would set the scale alone: clip at the 99th percentile
-        vmax = max(float(np.nanpercentile(speed, 99.0)), 1e-12)
-        disks = EllipseCollection(
-            d,
-            d,
-            np.zeros_like(d),
-            units="xy",
-            offsets=pos,
-            offset_transform=ax.transData,
-            cmap=cmap,
-            edgecolors="k",
-            linewidths=0.2,
-        )
-        disks.set_array(speed)
-        disks.set_clim(0.0, vmax)
-        ax.add_collection(disks)
-        walls = EllipseCollection(
-            np.full(len(wall), dw),
-            np.full(len(wall), dw),
-            np.zeros(len(wall)),
-            units="xy",
-            offsets=wall,
-            offset_transform=ax.transData,
-            facecolors="0.6",
-            edgecolors="0.3",
-            linewidths=0.2,
-        )
-        ax.add_collection(walls)
-        r = np.max(np.hypot(wall[:, 0], wall[:, 1])) + dw
-        ax.set_xlim(-r, r)
-        ax.set_ylim(-r, r)
-        ax.set_aspect("equal")
-        ax.set_xticks([])
-        ax.set_yticks([])
         label = f"({'abcdefgh'[k]}) " + (titles[k] if k < len(titles) and titles[k] else snaps[k])
-        ax.set_title(label, fontsize=8)
-        cb = fig.colorbar(disks, ax=ax, shrink=0.7, extend="max")
-        cb.set_label(f"speed [{run['snapshot_velocity'].attrs.get('units', '')}]")
+        disk_map(axes[0, k], pos, d, np.hypot(vel[:, 0], vel[:, 1]), label=f"speed [{units}]",
+                 walls=wall, wall_diameter=dw)  # fmt: skip
+        axes[0, k].set_title(label, fontsize=8)
+        if rows == 2:
+            disk_map(axes[1, k], pos, d, du[k], cmap="magma", vmax=1.0, walls=wall,
+                     wall_diameter=dw, label="|δu_i| / largest")  # fmt: skip
+            axes[1, k].set_title(f"{label}: the Lyapunov vector", fontsize=8)
     return fig
 
 

@@ -23,7 +23,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import xarray as xr  # noqa: E402
-from matplotlib.collections import EllipseCollection  # noqa: E402
+
+from . import disk_map  # noqa: E402
 
 __all__ = ["fig1_lambda_vs_phi", "fig2_event_triggered", "fig3_contrast", "fig4_chaos_map"]
 
@@ -86,19 +87,13 @@ def fig3_contrast(shear: xr.Dataset, drum: xr.Dataset | None) -> plt.Figure:
 
 
 def fig4_chaos_map(fits: xr.Dataset) -> plt.Figure:
-    fig, axes = plt.subplots(1, 2, figsize=(10, 5))
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.6), layout="constrained")
     xy = fits["snapshot_positions"].values
     d = fits["diameter"].values
-    for ax, (name, label, cmap) in zip(axes, [("snapshot_du", "|δu_i| / max", "magma"),
-                                              ("snapshot_speed", "|v_i| [d_s/t0]", "jet")],
-                                       strict=True):  # fmt: skip
-        col = EllipseCollection(d, d, np.zeros_like(d), units="x", offsets=xy,
-                                offset_transform=ax.transData, cmap=cmap)  # fmt: skip
-        col.set_array(fits[name].values)
-        ax.add_collection(col)
-        ax.set_aspect("equal")
-        r = np.abs(xy).max() + 1.0
-        ax.set(xlim=(-r, r), ylim=(-r, r), title=label)
-        fig.colorbar(col, ax=ax, shrink=0.8)
+    disk_map(axes[0], xy, d, fits["snapshot_du"].values, cmap="magma", vmax=1.0,
+             label="|δu_i| / largest")  # fmt: skip
+    disk_map(axes[1], xy, d, fits["snapshot_speed"].values, label="|v_i| [d_s/t0]")
+    axes[0].set_title("the Lyapunov vector", fontsize=9)
+    axes[1].set_title("speed", fontsize=9)
     fig.suptitle(f"where the chaos lives ({fits.attrs['point']}, one replica)")
     return fig
