@@ -1,26 +1,12 @@
-"""What Ref. [20] measured, at one φ and across φ (docs/shear.md, "Analysis").
+"""What Ref. [20] measured, at one φ (:func:`point_fits`) and across φ
+(:func:`phi_crossing`); definitions and tests: docs/shear.md, "Analysis".
 
-At one point (:func:`point_fits`):
-
-* ``lambda_mean`` — the time average of λ(t) over the record, per replica, averaged over
-  replicas (an estimate of the largest Lyapunov exponent of the sheared state); bootstrap
-  interval over replicas.
-* rearrangement events per replica (:func:`granpipe.shear.measures.rearrangement_events`)
-  and their rate.
-* the event-triggered average of λ (each replica's λ(t) aligned on each of its events,
-  pooled per replica: :func:`granpipe.analysis.events.align_on_many_events`), smoothed by
-  the drum paper's Eq. (2); ``event_lag`` — its first upward zero crossing that lasts
-  ``crossing_hold_s``, searched where enough events contribute, as the drum's aligned
-  onset lag (docs/drum.md, "Aligned on each pile's avalanche"): the same functions
-  (:func:`~granpipe.analysis.bootstrap.first_crossing`, moving average, bootstrap by
-  replica). ``lead_time`` = −``event_lag``: positive when λ̄ turns positive before the
-  events, as Ref. [20] reports.
-* ``correlation_*`` — C(|δu|, |v|) averaged over all samples, over the samples within
-  ``correlation_window_s`` of an event, and over the others.
-
-Across points (:func:`phi_crossing`): ``phi_lambda_zero`` — where ⟨λ⟩ first crosses zero
-in φ (the chaotic-to-non-chaotic transition of Ref. [20]), by linear interpolation between
-grid points; bootstrap over each point's replicas.
+``lambda_mean`` (time average of λ per replica, then over replicas), ``event_rate``,
+``event_lag`` (the first lasting upward zero crossing of λ̄, Eq. 2, of λ aligned on each
+replica's own events, minus the event: the drum's aligned onset lag, by the same
+functions) and ``lead_time`` = −``event_lag``, ``correlation_*`` (C(|δu|, |v|) over all
+samples, near events, elsewhere); across φ, ``phi_lambda_zero``. Intervals: bootstrap
+over replicas (with all their events).
 """
 
 from __future__ import annotations

@@ -1,24 +1,10 @@
-"""The sheared annular (Couette) cell the drum paper contrasts itself with (docs/shear.md).
-
-Banigan, Illich, Stace-Naughton & Egolf (Nature Phys. 9, 288 (2013); the drum paper's
-Ref. [20]) simulated bidisperse disks between an inner wall that turns at a constant rate
-and a still outer wall, both with treads, after the Behringer group's experiments. The
-drum paper states that they used "the same force model" as its Eq. (1); their full
-parameter set is not given there, so every value here is the drum paper's Table 1 or a
-choice named in docs/shear.md:
-
-* disks: 1:1 bidisperse, diameters ``d_small`` = 1 and ``d_large`` = 1.1667 d_s, masses
-  m = d² m_s (Table 1); the law of Eq. (1) with Table 1's k_n, γ_n, γ_t, μ and Δt;
-* walls (the treads): two rings of touching wall disks of diameter ``d_wall`` = 1.3846
-  d_s (the drum's) about one centre, ``n_inner`` of them turning counter-clockwise at Ω
-  (wall-disk rate 1, :class:`granpipe.engine.WallDisks`) and ``n_outer`` still (rate 0);
-  Ω = ``wall_speed`` / R_in, the inner ring's centres moving at ``wall_speed`` [d_s/t0];
-* no gravity; the packing fraction φ = Σ π a_i² / (π (R_out − d_w/2)² − π (R_in + d_w/2)²),
-  the disks' area over the annulus between the rings' inner envelopes, sets N
-  (:func:`n_disks`).
-
-Reduced units: length d_s, mass m_s, time t0 = 0.034975 s (the drum's, so that times in
-seconds compare with the drum's); λ in 1/t0.
+"""The sheared annular (Couette) cell of the drum paper's Ref. [20] (Banigan et al. 2013)
+under the drum paper's "same force model" (docs/shear.md, "The cell": every value and
+choice). Two rings of touching wall disks of the drum's size about one centre, the inner
+turning counter-clockwise at Ω = ``wall_speed`` / R_in (rate 1), the outer still (rate 0);
+1:1 bidisperse disks of Table 1 (m = d² m_s) at packing fraction φ of the annulus between
+the rings' inner envelopes; Eq. (1) with Table 1's coefficients and Δt; no gravity.
+Reduced units: d_s, m_s, t0 = 0.034975 s (the drum's); λ in 1/t0.
 """
 
 from __future__ import annotations

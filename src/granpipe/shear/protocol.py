@@ -31,28 +31,21 @@ from .measures import neighbour_edges, network_changes
 from .model import ShearCell
 from .preparation import grow
 
-__all__ = ["Steps", "steps", "run_replica", "run_batch"]
+__all__ = ["Steps", "run_replica", "run_batch"]
 
 
 class Steps:
-    """The protocol's times in engine steps (Δt = ``physics.dt`` t0)."""
+    """The protocol's times in engine steps (Δt = ``physics.dt`` t0); a sample is whole
+    blocks."""
 
     def __init__(self, section: Mapping):
         ph, pr = section["physics"], section["protocol"]
         self.dt_s = float(ph["dt"]) * float(ph["t0_s"])
         self.block = max(1, round(float(pr["block_s"]) / self.dt_s))
-        per = max(1, round(float(pr["sample_s"]) / self.dt_s / self.block))
-        self.sample = per * self.block  # a sample is whole blocks
+        self.sample = self.block * max(1, round(float(pr["sample_s"]) / self.dt_s / self.block))
         self.n_samples = max(1, round(float(pr["record_s"]) / (self.sample * self.dt_s)))
+        self.n_blocks = self.n_samples * self.sample // self.block
         self.align = round(float(pr["tangent_alignment_s"]) / self.dt_s)
-
-    @property
-    def n_blocks(self) -> int:
-        return self.n_samples * self.sample // self.block
-
-
-def steps(section: Mapping) -> Steps:
-    return Steps(section)
 
 
 def run_replica(section: Mapping, replica: int, log: Callable[[str], None] = lambda m: None):
@@ -116,42 +109,30 @@ def run_batch(section: Mapping, replicas, log: Callable[[str], None] = lambda m:
             raise exc.with_context(study="shear", stage="runs", point=point, replica=int(r),
                                    seed=seed) from None  # fmt: skip
     st = Steps(section)
-    t0 = float(section["physics"]["t0_s"])
-    time = (np.arange(st.n_blocks) + 0.5) * st.block * st.dt_s
-    sample = (np.arange(st.n_samples) + 1) * st.sample * st.dt_s
-
-    def stack(key):
-        return np.stack([o[key] for o in out])
-
-    dims = ("replica", "time")
+    rep, time, sample = ("replica",), ("replica", "time"), ("replica", "sample")
+    spec = {  # name: (dims, record key, units, long name)
+        "local_lyapunov": (time, "lam", "1/t0", "block mean of the local Lyapunov exponent λ(t)"),
+        "global_speed": (time, "speed", "d_s/t0", "block mean of V(t) = sqrt(Σ|v_i|²)"),
+        "network_changes": (sample, "changes", "1", "neighbour edges changed since the sample "
+                            "before"),
+        "speed_lyapunov_correlation": (sample, "corr", "1", "correlation of |δu_i| and |v_i| "
+                                       "over the mobile disks"),
+        "snapshot_positions": (rep + ("disk", "xy"), "positions", "d_s", "centres at the end"),
+        "snapshot_du": (rep + ("disk",), "du", "1", "|δu_i| at the end over its largest"),
+        "snapshot_speed": (rep + ("disk",), "v", "d_s/t0", "|v_i| at the end"),
+    }  # fmt: skip
     ds = xr.Dataset(
-        {
-            "local_lyapunov": (dims, stack("lam"), {"units": "1/t0", "long_name":
-                               "block mean of the local Lyapunov exponent λ(t)"}),
-            "global_speed": (dims, stack("speed"), {"units": "d_s/t0", "long_name":
-                             "block mean of V(t) = sqrt(Σ|v_i|²) over the mobile disks"}),
-            "network_changes": (("replica", "sample"), stack("changes"), {"units": "1",
-                                "long_name": "neighbour-network edges changed since the "
-                                "sample before"}),
-            "speed_lyapunov_correlation": (("replica", "sample"), stack("corr"), {"units": "1",
-                                           "long_name": "Pearson correlation of |δu_i| and "
-                                           "|v_i| over the mobile disks"}),
-            "snapshot_positions": (("replica", "disk", "xy"), stack("positions"), {"units":
-                                   "d_s", "long_name": "disk centres at the record's end"}),
-            "snapshot_du": (("replica", "disk"), stack("du"), {"units": "1", "long_name":
-                            "|δu_i| at the record's end over its largest"}),
-            "snapshot_speed": (("replica", "disk"), stack("v"), {"units": "d_s/t0",
-                               "long_name": "|v_i| at the record's end"}),
-            "diameter": (("disk",), out[0]["diameters"], {"units": "d_s", "long_name":
-                         "disk diameter"}),
-        },
+        {k: (d, np.stack([o[key] for o in out]), {"units": u, "long_name": ln})
+         for k, (d, key, u, ln) in spec.items()},
         coords={
-            "replica": ("replica", np.asarray(list(replicas), np.int64), {"units": "1",
-                        "long_name": "replica index"}),
-            "time": ("time", time, {"units": "s", "long_name": "block centre after t = 0"}),
-            "sample": ("sample", sample, {"units": "s", "long_name": "sample time after t = 0"}),
+            "replica": ("replica", np.asarray(list(replicas), np.int64),
+                        {"units": "1", "long_name": "replica index"}),
+            "time": ("time", (np.arange(st.n_blocks) + 0.5) * st.block * st.dt_s,
+                     {"units": "s", "long_name": "block centre after t = 0"}),
+            "sample": ("sample", (np.arange(st.n_samples) + 1) * st.sample * st.dt_s,
+                       {"units": "s", "long_name": "sample time after t = 0"}),
         },
     )  # fmt: skip
-    ds.attrs.update(t0_s=t0, block_s=st.block * st.dt_s, sample_s=st.sample * st.dt_s,
-                    n_mobile=len(out[0]["diameters"]))  # fmt: skip
+    ds["diameter"] = ("disk", out[0]["diameters"], {"units": "d_s", "long_name": "diameter"})
+    ds.attrs.update(block_s=st.block * st.dt_s, sample_s=st.sample * st.dt_s)
     return ds, [replica_seed("shear", section["physics"], r) for r in replicas]

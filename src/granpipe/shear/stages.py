@@ -1,15 +1,8 @@
-"""The shear study's stages as file-to-file functions (the CLI calls these; rules call the
-CLI; docs/architecture.md, "Stages"). Outputs under ``results/<scale>/shear/``:
-
-* runs:    :func:`runs_stage` — one batch of replicas of one φ (preparation and record)
-* fits:    :func:`fits_stage` — a point's numbers and curves from its batches (the shear
-           cell has no ensemble stage: its event-triggered averages need every replica's
-           record, and the fits read them batch by batch)
-* summary: :func:`summary_stage` — every point's rows and the zero crossing of ⟨λ⟩ in φ
-* figures: :func:`figures_stage` — Figs. 1-4 (docs/shear.md, "Figures")
-
-Every input is checked against what the stage derives from its own ``--params``: study,
-stage, point and config hash; a point's batches must hold each replica 0 … n−1 once.
+"""The shear study's stages, file to file (docs/architecture.md, "Stages"): runs (one batch
+of one φ: preparation and record), fits (a point's numbers from its batches: no ensemble
+stage, the event-triggered averages need every replica's record), summary, figures. Each
+input is checked against what the stage derives from its own ``--params`` (study, stage,
+point, config hash); a point's batches must hold each replica 0 … n−1 once.
 """
 
 from __future__ import annotations
