@@ -105,7 +105,8 @@ def synthetic_pile_runs(tmp_path, flows, *, stops=None, lag_on=3.0, lag_de=1.5, 
                                 np.full(p_on.size, RIGID), np.full(p_on.size, 0.2 + 0.01 * r)],
                                -1)  # fmt: skip
             pile_de = np.stack([np.full(p_de.size, 8.0), np.full(p_de.size, 8.0),
-                                np.full(p_de.size, RIGID), np.full(p_de.size, 0.4)], -1)  # fmt: skip
+                                np.full(p_de.size, RIGID), np.full(p_de.size, 0.4)],
+                               -1)  # fmt: skip
             recs.append(
                 ReplicaRecord(
                     replica=r, seed=r, lambda_onset=lam_on, speed_onset=v_on,
