@@ -24,16 +24,16 @@ Every law has ``.params()`` (its leaves' parameters), ``.pair(...)`` and
 ``.pair_jacobian(...)`` (5 x 7) for one contact, and ``.wall_pair(...)``,
 ``.wall_pair_jacobian(...)`` against a flat wall, through its contract leaves.
 ``WallDisks(centre, omega, omega_after=None, t_switch=inf)``
-    Rigid rotation of the disks flagged ``is_wall`` (counter-clockwise positive; the
-    drum stop is ``omega_after=0`` at ``t_switch``).
+    Rotation of the disks flagged ``is_wall``, each at its rate times ``omega``
+    (counter-clockwise positive; the drum stop is ``omega_after=0`` at ``t_switch``).
 ``FlatWalls(x_left, x_right, bottom, z0, amplitude, omega, phase, ramp_start, ramp_time,
 shaken_sides=False, wall_torque=True)``
     Vertical side lines and a bottom at ``z_b(t) = z0 + A r(t) sin(omega t + phase)``;
     the side walls shaken with the bottom or still; wall friction with or without torque.
 ``Simulation(law, dt, gravity=(0, -1), wall_disks=None, flat_walls=None, skin=None,
 parallel=True, max_overlap=0.5)``
-    ``.new_state(positions, radii, masses, *, velocities, spins, is_wall, inertia, time)
-    -> State`` (or ``Ensemble`` for a leading replica axis);
+    ``.new_state(positions, radii, masses, *, velocities, spins, is_wall, wall_rate,
+    inertia, time) -> State`` (or ``Ensemble`` for a leading replica axis);
     ``.run(state, n_steps, *, stride=0, tangent=False) -> Record`` advances in place;
     ``.set_tangent(state, dr, dv, dspin=None)``, ``.random_tangent(state, rng, fraction=0.1)``;
     ``.refresh(state)`` after editing a state in place; ``.replace(**changes)``;
@@ -67,20 +67,13 @@ Conventions
   (drum paper Sec. III). Steps where either norm is zero (S empty, or the vector lives
   only on rattlers) are left out of the block mean; ``lyapunov_count`` says how many
   steps entered each block. The vector is renormalised by exact powers of two.
-* Bad states (NaN/inf, an overlap deeper than half the smaller radius) stop the run
-  with :class:`granpipe.errors.SimulationError` naming the particle, step and time
-  (and ``other`` disk or wall, and ``replica`` for an ensemble).
-* Neighbour list: cell lists feed a Verlet half list with skin ``skin`` (default 0.1
-  of the smallest radius), rebuilt when some disk (wall disks included) is farther
-  than ``skin/2`` from where it was at the last build. Wall-wall pairs are left out.
-* Contacts touch at ``r <= a_i + a_j`` (the drum paper's ``delta <= 0``); the box
-  law's shear history lives per listed pair and per disk and flat wall, is carried
-  over list rebuilds, and is reset when a contact opens.
-* Threads: ``Simulation(parallel=True)`` runs an ensemble's replicas in threads, at
-  most ``numba.get_num_threads()``; a State runs serially in the calling thread,
-  without the GIL, so states may also be advanced side by side from Python threads.
-* Performance: gather -> the law's rows (vectorised) -> scatter over a flat pair list,
-  compacted to the touching pairs when fewer than half touch (docs/engine_performance.md).
+* Bad states (NaN/inf, an overlap deeper than ``max_overlap``) raise
+  :class:`granpipe.errors.SimulationError` naming particle, step, time (``other``,
+  ``replica``). The Verlet half list (skin default 0.1 of the smallest radius) is rebuilt
+  when a disk has moved ``skin/2``; contacts touch at ``r <= a_i + a_j``; shear
+  histories live per listed pair and per disk and flat wall, carried over rebuilds.
+* Threads: an ensemble's replicas run in up to ``numba.get_num_threads()`` threads; a
+  State runs serially without the GIL.
 
 Worked example
 --------------

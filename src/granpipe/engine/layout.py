@@ -12,7 +12,7 @@ NV = 11
 # rows of sca (NS, N): T_SPIN, T_TORQUE are the tangent vector's spin and torque (laws
 # with spin); XI_LEFT .. XI_BOTTOM the shear histories of each disk against the three
 # flat walls and T_XI_LEFT .. their perturbations (laws with history); WALL_RATE a wall
-# disk's angular velocity in units of the wall disks' omega (1: turns with them, 0: still)
+# disk's angular velocity over the wall disks' omega
 RADIUS, INV_MASS, INV_INERTIA, SPIN, TORQUE, T_PREV, XI_LEFT, XI_RIGHT, XI_BOTTOM = range(9)
 T_SPIN, T_TORQUE = 9, 10
 T_XI_LEFT, T_XI_RIGHT, T_XI_BOTTOM = 11, 12, 13

@@ -145,18 +145,14 @@ class Ensemble:
             else:
                 storage[key] = _aligned_copy(a)
         if fmt < 8:
-            # before 8 the state kept each contact's smooth piece (three rows of ivec for
-            # the flat walls, 1 + piece in the touch flags), and before 7 it had no rows
-            # for the flat walls' history perturbations: flags now, recounted
+            # before 8: each contact's smooth piece (three rows of ivec, 1 + piece in the
+            # touch flags; flags now, recounted); before 7: no wall-history perturbations
             storage["ivec"] = np.ascontiguousarray(storage["ivec"][:, : K.NI])
             storage["touch"] = np.minimum(storage["touch"], 1)
             storage["counters"][..., K.COUNT_STALE] = 1
-            storage["sca"] = _pad(storage["sca"].swapaxes(1, 2), K.NS - 1).swapaxes(1, 2).copy()
-        if fmt < 9:
-            # before 9 every wall disk turned with the wall disks' omega (rate 1)
-            sca = _pad(storage["sca"].swapaxes(1, 2), K.NS).swapaxes(1, 2).copy()
-            sca[:, K.WALL_RATE] = storage["ivec"][:, K.IS_WALL] != 0
-            storage["sca"] = sca
+        if fmt < 9:  # no wall rates before 9 (every wall disk turned at rate 1)
+            storage["sca"] = _pad(storage["sca"].swapaxes(1, 2), K.NS).swapaxes(1, 2).copy()
+            storage["sca"][:, K.WALL_RATE] = storage["ivec"][:, K.IS_WALL] != 0
         # scratch is rewritten before it is read
         vec = storage["vec"]
         storage.update(_scratch(vec.shape[:1], vec.shape[2], storage["pair_ij"].shape[-1]))
@@ -574,9 +570,8 @@ class Simulation:
         is_wall : (N,) or (R, N) bool, optional
             Disks whose motion is prescribed by ``wall_disks`` (default: none).
         wall_rate : (N,) or (R, N) float64, optional
-            Each wall disk's angular velocity in units of ``wall_disks.omega`` (default
-            1: the wall disks turn as one body; 0 keeps a disk still; mobile disks'
-            entries are ignored).
+            Each wall disk's angular velocity over ``wall_disks.omega`` (default 1; 0:
+            still).
         inertia : (N,) or (R, N) float64 [mass*length²], optional
             Moments of inertia (box law; default ``m sigma²/8 = m a²/2``; ``inf`` keeps
             a disk from turning).
@@ -607,10 +602,8 @@ class Simulation:
         mass = per_disk(masses, "masses")
         wall = per_disk(is_wall, "is_wall", default=False, dtype=bool)
         rate = np.where(wall, per_disk(wall_rate, "wall_rate", default=1.0), 0.0)
-        if not np.all(np.isfinite(rate)):
-            raise ConfigError("wall_rate must be finite")
-        if not np.all(np.isfinite(rad) & (rad > 0)):
-            raise ConfigError("radii must be finite and > 0")
+        if not np.all(np.isfinite(rad) & (rad > 0) & np.isfinite(rate)):
+            raise ConfigError("radii must be finite and > 0, wall rates finite")
         if not np.all(wall | (np.isfinite(mass) & (mass > 0))):
             raise ConfigError("masses of mobile disks must be finite and > 0")
         if not np.all(np.isfinite(pos)):

@@ -3,15 +3,11 @@
 Walls act on disks through the same contact law as disk pairs, with infinite mass
 on the wall side (docs/drum.md, docs/box.md; docs/architecture.md, "The engine").
 
-* :class:`WallDisks` — the disks flagged ``is_wall`` turn rigidly about ``centre`` at
-  angular velocity ``omega`` (counter-clockwise positive; the drum of docs/drum.md
-  turns clockwise, ``omega = -2.4417e-4``), which switches abruptly to
-  ``omega_after`` at ``t_switch`` (the drum stop). Each wall disk turns at its own
-  multiple of it, its rate (``Simulation.new_state(wall_rate=...)``, default 1): rings
-  about one centre that turn at different speeds, e.g. the shear cell's turning inner
-  ring (rate 1) and still outer ring (rate 0), docs/shear.md. The rotation angle is
-  part of the state, so the motion can be redefined between chunks of a run without a
-  jump.
+* :class:`WallDisks` — the disks flagged ``is_wall`` turn about ``centre`` at their rate
+  (``new_state(wall_rate=...)``, default 1; the shear cell's still ring: 0) times
+  ``omega`` (counter-clockwise positive; the drum turns clockwise), which switches to
+  ``omega_after`` at ``t_switch`` (the drum stop). The angle is part of the state, so the
+  motion can be redefined between chunks of a run without a jump.
 * :class:`FlatWalls` — vertical lines ``x = x_left`` and ``x = x_right`` and a
   horizontal bottom at ``y = z_b(t) = z0 + A r(t) sin(omega t + phase)``, with an
   optional linear amplitude ramp ``r(t) = clip((t - ramp_start)/ramp_time, 0, 1)``
@@ -246,18 +242,12 @@ def place_wall_disks(vec, sca, walls, n_walls, wd, theta, omega):
     vel = vec[L.VEL]
     ref = vec[L.WALL_REF]
     spin = sca[L.SPIN]
-    rate = sca[L.WALL_RATE]
-    cx = wd[0]
-    cy = wd[1]
-    c1 = math.cos(theta)
-    s1 = math.sin(theta)
+    cx, cy = wd[0], wd[1]
+    c1, s1 = math.cos(theta), math.sin(theta)
     for m in range(n_walls):
         i = walls[m]
-        f = rate[i]
-        c, s = c1, s1
-        if f != 1.0:
-            c = math.cos(f * theta)
-            s = math.sin(f * theta)
+        f = sca[L.WALL_RATE, i]
+        c, s = (c1, s1) if f == 1.0 else (math.cos(f * theta), math.sin(f * theta))
         w = f * omega
         rx = ref[i, 0]
         ry = ref[i, 1]
