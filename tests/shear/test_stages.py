@@ -1,0 +1,62 @@
+"""The shear stages file to file: every input checked against the stage's own params."""
+
+import shutil
+
+import pytest
+
+from granpipe.io import RunFileError
+from granpipe.shear import layout
+from granpipe.shear.stages import figures_stage, fits_stage, runs_stage, summary_stage
+
+
+@pytest.fixture(scope="module")
+def two_points(tmp_path_factory):
+    """The tiny cell at φ = 0.80 and 0.82, two batches of one replica each, and fits."""
+    from tests.shear.conftest import shear_section
+
+    cfg = shear_section(
+        physics={"phi": [0.8, 0.82], "n_inner": 12, "n_outer": 30},
+        preparation={"growth_stages": 10, "growth_s": 0.4, "steady_s": 0.4},
+        protocol={"record_s": 0.4, "tangent_alignment_s": 0.1},
+        ensemble={"n_replicas": 2, "batch_size": 1},
+        fits={"aligned_before_s": 0.1, "aligned_after_s": 0.1, "bootstrap_resamples": 50},
+    )
+    root = tmp_path_factory.mktemp("shear")
+    for point in layout.points(cfg):
+        runs = [root / layout.run_file(point, b) for b in layout.batches(cfg)]
+        for b, path in enumerate(runs):
+            runs_stage(layout.runs_params(cfg, point), b, path)
+        fits_stage(layout.fits_params(cfg, point), runs, root / layout.fits_file(point))
+    return cfg, root
+
+
+def test_fits_refuse_another_points_batches_and_missing_replicas(two_points):
+    cfg, root = two_points
+    a, b = layout.points(cfg)
+    theirs = [root / layout.run_file(b, x) for x in layout.batches(cfg)]
+    with pytest.raises(RunFileError, match="point"):
+        fits_stage(layout.fits_params(cfg, a), theirs, root / "x.nc")
+    ours = [root / layout.run_file(a, "0000")]
+    with pytest.raises(RunFileError, match="replicas"):
+        fits_stage(layout.fits_params(cfg, a), ours, root / "x.nc")
+    assert not (root / "x.nc").exists()
+
+
+def test_summary_and_figures_from_every_point_and_only_those(two_points, tmp_path):
+    cfg, root = two_points
+    fits = [root / layout.fits_file(p) for p in layout.points(cfg)]
+    out = summary_stage(layout.summary_params(cfg), fits, tmp_path / "summary.csv")
+    text = out.read_text()
+    assert "lambda_mean[phi=0.8]" in text and "lambda_mean[phi=0.82]" in text
+    assert "phi_lambda_zero" in text
+    paths = figures_stage(layout.figures_params(cfg), fits, tmp_path / "figures")
+    assert sorted(p.name for p in paths) == sorted(
+        f"{n}.{e}" for n in layout.FIGURES for e in ("png", "pdf"))  # fmt: skip
+    # a point's fits copied over the other's name, or one point missing, is refused
+    copy = tmp_path / "fits" / f"{layout.points(cfg)[1]}.nc"
+    copy.parent.mkdir()
+    shutil.copy(fits[0], copy)
+    with pytest.raises(RunFileError, match="holds the fits of"):
+        summary_stage(layout.summary_params(cfg), [fits[0], copy], tmp_path / "s2.csv")
+    with pytest.raises(RunFileError, match="no fits file"):
+        summary_stage(layout.summary_params(cfg), fits[:1], tmp_path / "s3.csv")
