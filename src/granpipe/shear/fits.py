@@ -4,9 +4,9 @@
 ``lambda_mean`` (time average of λ per replica, then over replicas), ``event_rate``,
 ``event_lag`` (the first lasting upward zero crossing of λ̄, Eq. 2, of λ aligned on each
 replica's own events, minus the event: the drum's aligned onset lag, by the same
-functions) and ``lead_time`` = −``event_lag``, ``correlation_*`` (C(|δu|, |v|) over all
-samples, near events, elsewhere); across φ, ``phi_lambda_zero``. Intervals: bootstrap
-over replicas (with all their events).
+functions) and ``lead_time`` = −``event_lag``, ``correlation_*`` (C(|δu|, |v|) over each
+replica's samples, all, near events or elsewhere, then over replicas); across φ,
+``phi_lambda_zero``. Intervals: bootstrap over replicas (with all their events).
 """
 
 from __future__ import annotations
@@ -41,6 +41,19 @@ def _boot_kw(cfg):
                 seed=int(cfg["seed"]))  # fmt: skip
 
 
+def _over_replicas(name, values, unit, method, cfg) -> FitResult:
+    """Mean over replicas of one value each, its standard error and bootstrap interval."""
+    n = len(values)
+    if n == 0:
+        return FitResult(name, math.nan, math.nan, unit, n=0, method=method)
+    sem = float(np.std(values, ddof=1) / math.sqrt(n)) if n > 1 else math.nan
+    res = FitResult(name, float(np.mean(values)), sem, unit, n=n, method=method)
+    if int(cfg["bootstrap_resamples"]) > 0 and n > 1:
+        res = res.with_ci(bootstrap_replicas(np.asarray(values)[:, None], lambda m: m[:, 0],
+                                             **_boot_kw(cfg)))  # fmt: skip
+    return res
+
+
 def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dataset]:
     """The point's fitted numbers and curves from its runs (``ds``: batches concatenated
     along ``replica``); ``params`` is the fits rule's subset."""
@@ -48,20 +61,8 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
     lam = ds["local_lyapunov"].values
     R = lam.shape[0]
     per_replica = np.nanmean(lam, axis=1)
-    sem = float(per_replica.std(ddof=1) / math.sqrt(R)) if R > 1 else math.nan
-    res = [
-        FitResult(
-            "lambda_mean",
-            float(per_replica.mean()),
-            sem,
-            "1/t0",
-            n=R,
-            method="time average of λ(t) over the record, mean over replicas",
-        )
-    ]
-    if int(cfg["bootstrap_resamples"]) > 0 and R > 1:
-        res[0] = res[0].with_ci(bootstrap_replicas(per_replica[:, None], lambda m: m[:, 0],
-                                                   **_boot_kw(cfg)))  # fmt: skip
+    res = [_over_replicas("lambda_mean", per_replica, "1/t0", "time average of λ(t) over the "
+                          "record, mean over replicas", cfg)]  # fmt: skip
     events = event_times(ds, params["events"])
     n_ev = sum(len(e) for e in events)
     record = float(ds["time"].values[-1] + ds.attrs["block_s"] / 2)
@@ -108,11 +109,11 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
         if len(ev):
             near[r] = (np.abs(s[:, None] - ev[None, :]) <= window).any(axis=1)
     for name, m in (("all", np.ones_like(near)), ("events", near), ("quiet", ~near)):
-        v = corr[m & np.isfinite(corr)]
-        res.append(FitResult(f"correlation_{name}", float(v.mean()) if v.size else math.nan,
-                             float(v.std(ddof=1) / math.sqrt(v.size)) if v.size > 1 else math.nan,
-                             "1", n=int(v.size), method=f"mean of C(|δu|, |v|) over the "
-                             f"{name} samples"))  # fmt: skip
+        with np.errstate(invalid="ignore", divide="ignore"):  # a replica without such samples
+            v = np.nansum(np.where(m, corr, np.nan), 1) / (m & np.isfinite(corr)).sum(1)
+        res.append(_over_replicas(f"correlation_{name}", v[np.isfinite(v)], "1", "C(|δu|, |v|) "
+                                  f"averaged over each replica's {name} samples, then over "
+                                  "replicas", cfg))  # fmt: skip
     label = "time after each event"
     curves = xr.Dataset(
         {
