@@ -10,7 +10,7 @@ from tests.shear.conftest import shear_section
 BLOCK, SAMPLE, RECORD = 0.004, 0.02, 12.0
 
 
-def synthetic_runs(lead, n_rep=6, seed=0):
+def synthetic_runs(lead, n_rep=6, seed=0, bump=None):
     """λ = −0.5 except +0.5 from ``lead`` s before each event to 1.5 s after it, small
     noise; a burst of 10 network changes in the sample of each event (every 2.5-3.5 s)."""
     rng = np.random.default_rng(seed)
@@ -25,7 +25,10 @@ def synthetic_runs(lead, n_rep=6, seed=0):
         changes[r, k] = 10
         ev = s[k] - SAMPLE / 2  # the event's time: the middle of its sample interval
         for e in ev:
-            lam[r, (t > e - lead) & (t < e + 1.5)] += 1.0
+            if bump is None:
+                lam[r, (t > e - lead) & (t < e + 1.5)] += 1.0
+            else:  # a bump of height 0.3 centred ``bump`` s after the event
+                lam[r] += 0.3 * np.exp(-((t - e - bump) ** 2) / (2 * 0.1**2))
         truth.append(ev)
     n = 5
     ds = xr.Dataset(
@@ -93,3 +96,16 @@ def test_zero_crossing_in_phi_is_interpolated_between_points():
     assert res.ci_low < res.value < res.ci_high and res.ci_high - res.ci_low < 0.005
     # no crossing: NaN
     assert np.isnan(phi_crossing(phis, [m - 1.0 for m in means], cfg).value)
+
+
+def test_a_bump_of_lambda_before_the_events_is_timed_though_it_never_turns_positive():
+    """λ = −0.5 plus a bump of 0.3 centred 0.3 s before each event: λ̄ never crosses zero
+    (no lead time, as at every φ of the validation scale), but its maximum sits 0.3 s
+    before the events, with an interval that holds it and excludes zero."""
+    ds, _ = synthetic_runs(0.0, bump=-0.3)
+    res, _ = point_fits(ds, params())
+    r = {x.quantity: x for x in res}
+    assert np.isnan(r["lead_time"].value)
+    peak = r["lambda_peak_time"]
+    assert peak.value == pytest.approx(-0.3, abs=0.03)  # the smoothed top is flat
+    assert peak.ci_low <= -0.3 <= peak.ci_high and peak.ci_high < 0

@@ -4,9 +4,10 @@
 ``lambda_mean`` (time average of λ per replica, then over replicas), ``event_rate``,
 ``event_lag`` (the first lasting upward zero crossing of λ̄, Eq. 2, of λ aligned on each
 replica's own events, minus the event: the drum's aligned onset lag, by the same
-functions) and ``lead_time`` = −``event_lag``, ``correlation_*`` (C(|δu|, |v|) over each
-replica's samples, all, near events or elsewhere, then over replicas); across φ,
-``phi_lambda_zero``. Intervals: bootstrap over replicas (with all their events).
+functions) and ``lead_time`` = −``event_lag``, ``lambda_peak_time`` (where that λ̄ is
+largest), ``correlation_*`` (C(|δu|, |v|) over each replica's samples, all, near events or
+elsewhere, then over replicas); across φ, ``phi_lambda_zero``. Intervals: bootstrap over
+replicas (with all their events).
 """
 
 from __future__ import annotations
@@ -85,22 +86,33 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
     keep = count >= float(cfg["aligned_min_fraction"]) * max(n_ev, 1)
     search = (tau[keep][0], tau[keep][-1]) if keep.any() else (np.nan, np.nan)
 
-    def lag(m):
-        return first_crossing(tau, moving_average(np.where(keep, m, np.nan), q), search, +1, hold)
+    def bar(m):
+        return moving_average(np.where(keep, m, np.nan), q)
 
-    lag_res = FitResult("event_lag", float(lag(mean)), math.nan, "s", n=n_ev,
+    def lag_and_peak(m):  # (..., 2): λ̄'s lasting upward zero crossing, and its maximum
+        lb = bar(m)
+        has = np.isfinite(lb).any(-1)
+        top = np.nanargmax(np.where(np.isfinite(lb), lb, -np.inf), axis=-1)
+        peak = np.where(has, tau[top], np.nan)
+        return np.stack([first_crossing(tau, lb, search, +1, hold), peak], -1)
+
+    lag0, peak0 = lag_and_peak(mean)
+    lag_res = FitResult("event_lag", float(lag0), math.nan, "s", n=n_ev,
                         method="first lasting upward zero crossing of λ̄ (Eq. 2) of λ averaged "
                         "over the events, each replica aligned on each of its own, minus the "
                         "event")  # fmt: skip
+    peak = FitResult("lambda_peak_time", float(peak0), math.nan, "s", n=n_ev,
+                     method="time of the largest λ̄ of λ averaged over the events, minus the "
+                     "event (negative: λ̄ is largest before the events)")  # fmt: skip
     units = np.flatnonzero(C.max(axis=1) > 0)
     if int(cfg["bootstrap_resamples"]) > 0 and units.size > 1:
-        boot = bootstrap_batches(M[units], C[units], lambda m: lag(m), **_boot_kw(cfg))
-        lag_res = lag_res.with_ci(boot)
+        boot = bootstrap_batches(M[units], C[units], lag_and_peak, **_boot_kw(cfg))
+        lag_res, peak = lag_res.with_ci(boot, 0), peak.with_ci(boot, 1)
     lead = FitResult("lead_time", -lag_res.value, math.nan, "s", ci_low=-lag_res.ci_high,
                      ci_high=-lag_res.ci_low, ci_level=lag_res.ci_level, n=n_ev,
                      n_resamples=lag_res.n_resamples, method="−event_lag: how long before the "
                      "events λ̄ turns positive")  # fmt: skip
-    res += [lag_res, lead]
+    res += [lag_res, lead, peak]
     corr = ds["speed_lyapunov_correlation"].values
     near = np.zeros(corr.shape, dtype=bool)
     s = ds["sample"].values
@@ -121,7 +133,7 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
                                     "time average of λ per replica"}),
             "aligned_lambda": ("tau", mean, {"units": "1/t0", "long_name": "λ averaged over "
                                "the events, each replica aligned on its own"}),
-            "aligned_lambda_bar": ("tau", moving_average(np.where(keep, mean, np.nan), q),
+            "aligned_lambda_bar": ("tau", bar(mean),
                                    {"units": "1/t0", "long_name": "moving average (Eq. 2) of "
                                     "the aligned λ, where enough events contribute"}),
             "aligned_speed": ("tau", mean_v, {"units": "d_s/t0", "long_name": "V averaged over "
