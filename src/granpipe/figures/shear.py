@@ -55,8 +55,9 @@ def fig2_event_triggered(fits: dict[str, xr.Dataset]) -> plt.Figure:
     fig, (a, b) = plt.subplots(2, 1, figsize=(6, 6), sharex=True,
                                gridspec_kw={"height_ratios": [3, 1]})  # fmt: skip
     for point, ds in fits.items():
-        lead = _v(ds, "lead_time")
-        txt = f"{point}, lead {lead:.2f} s" if np.isfinite(lead) else f"{point}, no crossing"
+        lead, top = _v(ds, "lead_time"), _v(ds, "lambda_peak_time")
+        txt = f"{point}: " + (f"lead {lead:.2f} s, " if np.isfinite(lead) else "never > 0, ")
+        txt += f"largest at {top:+.2f} s"
         (line,) = a.plot(ds["tau"], ds["aligned_lambda_bar"], label=txt)
         b.plot(ds["tau"], ds["aligned_count"], color=line.get_color())
     a.axhline(0.0, color="0.5", lw=0.8)
@@ -70,9 +71,10 @@ def fig2_event_triggered(fits: dict[str, xr.Dataset]) -> plt.Figure:
 
 def fig3_contrast(shear: xr.Dataset, drum: xr.Dataset | None) -> plt.Figure:
     fig, a = plt.subplots(figsize=(6.5, 4))
-    lead = _v(shear, "lead_time")
+    lead, top = _v(shear, "lead_time"), _v(shear, "lambda_peak_time")
     a.plot(shear["tau"], shear["aligned_lambda_bar"], color="tab:purple",
-           label=f"shear cell ({shear.attrs['point']}): lead time {lead:.2f} s")  # fmt: skip
+           label=f"shear cell ({shear.attrs['point']}), aligned on rearrangements: lead "
+           f"{lead:.2f} s, largest at {top:+.2f} s")  # fmt: skip
     if drum is not None and "aligned_lambda_bar_onset" in drum:
         lag = _v(drum, "onset_lag_aligned")
         a.plot(drum["tau_onset"], drum["aligned_lambda_bar_onset"], color="tab:blue",
