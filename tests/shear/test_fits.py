@@ -109,3 +109,9 @@ def test_a_bump_of_lambda_before_the_events_is_timed_though_it_never_turns_posit
     peak = r["lambda_peak_time"]
     assert peak.value == pytest.approx(-0.3, abs=0.03)  # the smoothed top is flat
     assert peak.ci_low <= -0.3 <= peak.ci_high and peak.ci_high < 0
+    # the excess over λ far from the events: the bump's mean over [−0.5, 0) and [0, 0.5)
+    tau = np.arange(-125, 125) * BLOCK
+    f = 0.3 * np.exp(-((tau + 0.3) ** 2) / (2 * 0.1**2))
+    for key, want in (("before", f[tau < 0].mean()), ("after", f[tau >= 0].mean())):
+        x = r[f"lambda_excess_{key}"]
+        assert x.value == pytest.approx(want, abs=0.01) and x.ci_low <= want <= x.ci_high

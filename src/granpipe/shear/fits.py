@@ -5,9 +5,10 @@
 ``event_lag`` (the first lasting upward zero crossing of λ̄, Eq. 2, of λ aligned on each
 replica's own events, minus the event: the drum's aligned onset lag, by the same
 functions) and ``lead_time`` = −``event_lag``, ``lambda_peak_time`` (where that λ̄ is
-largest), ``correlation_*`` (C(|δu|, |v|) over each replica's samples, all, near events or
-elsewhere, then over replicas); across φ, ``phi_lambda_zero``. Intervals: bootstrap over
-replicas (with all their events).
+largest), ``lambda_excess_before``/``_after`` (λ's excess just before and after the
+events over its level far from them), ``correlation_*`` (C(|δu|, |v|) over each
+replica's samples, all, near events or elsewhere, then over replicas); across φ,
+``phi_lambda_zero``. Intervals: bootstrap over replicas (with all their events).
 """
 
 from __future__ import annotations
@@ -89,14 +90,19 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
     def bar(m):
         return moving_average(np.where(keep, m, np.nan), q)
 
-    def lag_and_peak(m):  # (..., 2): λ̄'s lasting upward zero crossing, and its maximum
-        lb = bar(m)
+    w = float(cfg["moving_average_s"])
+    before, after, outer = (tau >= -w) & (tau < 0), (tau >= 0) & (tau < w), np.abs(tau) >= 2 * w
+
+    def lag_and_peak(m):  # (..., 4): λ̄'s lasting upward zero crossing, its maximum, and λ's
+        lb = bar(m)  # mean excess over the outer window just before and just after the event
         has = np.isfinite(lb).any(-1)
         top = np.nanargmax(np.where(np.isfinite(lb), lb, -np.inf), axis=-1)
         peak = np.where(has, tau[top], np.nan)
-        return np.stack([first_crossing(tau, lb, search, +1, hold), peak], -1)
+        base = np.nanmean(m[..., outer], -1)
+        ex = [np.nanmean(m[..., x], -1) - base for x in (before, after)]
+        return np.stack([first_crossing(tau, lb, search, +1, hold), peak, *ex], -1)
 
-    lag0, peak0 = lag_and_peak(mean)
+    lag0, peak0, ex_before, ex_after = lag_and_peak(mean)
     lag_res = FitResult("event_lag", float(lag0), math.nan, "s", n=n_ev,
                         method="first lasting upward zero crossing of λ̄ (Eq. 2) of λ averaged "
                         "over the events, each replica aligned on each of its own, minus the "
@@ -104,15 +110,20 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
     peak = FitResult("lambda_peak_time", float(peak0), math.nan, "s", n=n_ev,
                      method="time of the largest λ̄ of λ averaged over the events, minus the "
                      "event (negative: λ̄ is largest before the events)")  # fmt: skip
+    excess = [FitResult(f"lambda_excess_{k}", float(v), math.nan, "1/t0", n=n_ev,
+                        method=f"mean of λ averaged over the events within {w:g} s {k} them, "
+                        f"minus its mean {2 * w:g} s or more away from them")
+              for k, v in (("before", ex_before), ("after", ex_after))]  # fmt: skip
     units = np.flatnonzero(C.max(axis=1) > 0)
     if int(cfg["bootstrap_resamples"]) > 0 and units.size > 1:
         boot = bootstrap_batches(M[units], C[units], lag_and_peak, **_boot_kw(cfg))
         lag_res, peak = lag_res.with_ci(boot, 0), peak.with_ci(boot, 1)
+        excess = [x.with_ci(boot, k) for k, x in enumerate(excess, start=2)]
     lead = FitResult("lead_time", -lag_res.value, math.nan, "s", ci_low=-lag_res.ci_high,
                      ci_high=-lag_res.ci_low, ci_level=lag_res.ci_level, n=n_ev,
                      n_resamples=lag_res.n_resamples, method="−event_lag: how long before the "
                      "events λ̄ turns positive")  # fmt: skip
-    res += [lag_res, lead, peak]
+    res += [lag_res, lead, peak, *excess]
     corr = ds["speed_lyapunov_correlation"].values
     near = np.zeros(corr.shape, dtype=bool)
     s = ds["sample"].values
