@@ -51,18 +51,24 @@ def fig1_lambda_vs_phi(fits: dict[str, xr.Dataset]) -> plt.Figure:
     return fig
 
 
-def fig2_event_triggered(fits: dict[str, xr.Dataset]) -> plt.Figure:
+def fig2_event_triggered(fits: dict[str, xr.Dataset], min_events: int = 100) -> plt.Figure:
+    """λ̄ aligned on the events minus its level far from them (|τ| ≥ half the window), per
+    φ with at least ``min_events`` events, and the events behind each τ."""
     fig, (a, b) = plt.subplots(2, 1, figsize=(6, 6), sharex=True,
                                gridspec_kw={"height_ratios": [3, 1]})  # fmt: skip
     for point, ds in fits.items():
+        tau, lb = ds["tau"].values, ds["aligned_lambda_bar"].values
+        if int(ds["event_lag"].attrs.get("n", 0)) < min_events:
+            continue
+        base = np.nanmean(np.where(np.abs(tau) >= 0.5 * np.abs(tau).max(), lb, np.nan))
         lead, top = _v(ds, "lead_time"), _v(ds, "lambda_peak_time")
         txt = f"{point}: " + (f"lead {lead:.2f} s, " if np.isfinite(lead) else "never > 0, ")
-        txt += f"largest at {top:+.2f} s"
-        (line,) = a.plot(ds["tau"], ds["aligned_lambda_bar"], label=txt)
-        b.plot(ds["tau"], ds["aligned_count"], color=line.get_color())
+        (line,) = a.plot(tau, lb - base, label=txt + f"largest at {top:+.2f} s")
+        b.plot(tau, ds["aligned_count"], color=line.get_color())
     a.axhline(0.0, color="0.5", lw=0.8)
     a.axvline(0.0, color="k", lw=0.8, ls=":")
-    a.set(ylabel="λ̄ over events [1/t0]", title="λ̄ aligned on each rearrangement")
+    a.set(ylabel="λ̄ − its level far from events [1/t0]",
+          title=f"λ̄ aligned on each rearrangement (φ with ≥ {min_events} events)")  # fmt: skip
     a.legend(fontsize=7)
     b.set(xlabel="t − t_event [s]", ylabel="events")
     fig.tight_layout()
