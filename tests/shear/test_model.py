@@ -71,3 +71,8 @@ def test_check_refuses_what_cannot_run(tiny):
         layout.check({**tiny, "figures": {**tiny["figures"], "contrast_phi": 0.5}})
     with pytest.raises(ConfigError, match="aligned_before_s"):
         layout.check({**tiny, "fits": {**tiny["fits"], "aligned_before_s": 1.0}})
+    # sizes are counted before anything is built: the plan, a job's memory
+    for section, key, value in (("ensemble", "n_replicas", 10**9), ("physics", "n_outer", 10**10),
+                                ("protocol", "record_s", 1e12)):  # fmt: skip
+        with pytest.raises(ConfigError, match=f"shear.{section}.{key}"):
+            layout.check({**tiny, section: {**tiny[section], key: value}})

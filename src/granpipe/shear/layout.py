@@ -58,6 +58,10 @@ def physics_for(cfg: Mapping, point: str) -> dict:
     return {**cfg["physics"], "phi": phi}
 
 
+BYTES_PER_DISK = 4096
+"""A generous bound on a job's memory per disk (engine state, neighbour list, Delaunay)."""
+
+
 def check(cfg: Mapping) -> None:
     """Cross-key checks before any job (ConfigError names the key): every point's disks fit
     the placement rings and the annulus is wider than two disks; the sample holds whole
@@ -65,16 +69,25 @@ def check(cfg: Mapping) -> None:
     the plan is not too large."""
     import numpy as np
 
-    from ..config import check_plan
-    from .model import ShearCell
+    from ..config import check_memory, check_plan
+    from .model import ShearCell, n_disks
     from .preparation import placement
 
-    ph = cfg["physics"]
+    ph, pr, fits = cfg["physics"], cfg["protocol"], cfg["fits"]
     if int(ph["n_outer"]) <= int(ph["n_inner"]):
         raise ConfigError("config key 'shear.physics.n_outer' must exceed 'n_inner' (the outer "
                           "ring encloses the inner)")  # fmt: skip
-    check_plan("shear.ensemble.n_replicas", len(phis(cfg)) * len(batches(cfg)),
-               "raise 'shear.ensemble.batch_size' or list fewer phi")  # fmt: skip
+    n_phi = len(ph["phi"]) if isinstance(ph["phi"], list | tuple) else 1
+    e = cfg["ensemble"]  # the plan and each job's memory, counted before anything is built
+    jobs = n_phi * -(-int(e["n_replicas"]) // int(e["batch_size"]))
+    check_plan("shear.ensemble.n_replicas", jobs, "raise 'shear.ensemble.batch_size' or list "
+               "fewer phi")  # fmt: skip
+    disks = n_disks({**ph, "phi": max(phis(cfg))}) + int(ph["n_inner"]) + int(ph["n_outer"])
+    check_memory("shear.physics.n_outer", ph["n_outer"], BYTES_PER_DISK * disks)
+    blocks = float(pr["record_s"]) / float(pr["block_s"])
+    check_memory(
+        "shear.protocol.record_s", pr["record_s"], 16.0 * blocks * (2 + int(e["batch_size"]))
+    )
     prep = cfg["preparation"]
     for point in points(cfg):
         cell = ShearCell.from_physics(physics_for(cfg, point))
@@ -88,7 +101,6 @@ def check(cfg: Mapping) -> None:
             raise ConfigError(
                 f"config key 'shear.preparation.start_scale' at {point}: {exc}"
             ) from None
-    pr, fits = cfg["protocol"], cfg["fits"]
     contrast = cfg["figures"]["contrast_phi"]
     if contrast is not None and float(contrast) not in phis(cfg):
         raise ConfigError(f"config key 'shear.figures.contrast_phi' = {contrast} is not one of "

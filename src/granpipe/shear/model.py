@@ -31,8 +31,7 @@ def ring(n: int, d_wall: float) -> tuple[np.ndarray, float]:
 def annulus(physics: Mapping) -> tuple[float, float]:
     """(r_in, r_out) [d_s]: the rings' inner envelopes, R_in + d_w/2 and R_out − d_w/2."""
     dw = float(physics["d_wall"])
-    _, r_in = ring(int(physics["n_inner"]), dw)
-    _, r_out = ring(int(physics["n_outer"]), dw)
+    r_in, r_out = (dw / (2.0 * math.sin(math.pi / int(physics[k]))) for k in ("n_inner", "n_outer"))
     return r_in + dw / 2.0, r_out - dw / 2.0
 
 
