@@ -78,13 +78,15 @@ def fig2_event_triggered(fits: dict[str, xr.Dataset], min_events: int = 100) -> 
 def fig3_contrast(shear: xr.Dataset, drum: xr.Dataset | None) -> plt.Figure:
     fig, a = plt.subplots(figsize=(6.5, 4))
     lead, top = _v(shear, "lead_time"), _v(shear, "lambda_peak_time")
+    crossing = f"lead {lead:.2f} s" if np.isfinite(lead) else "never > 0"
     a.plot(shear["tau"], shear["aligned_lambda_bar"], color="tab:purple",
-           label=f"shear cell ({shear.attrs['point']}), aligned on rearrangements: lead "
-           f"{lead:.2f} s, largest at {top:+.2f} s")  # fmt: skip
+           label=f"shear cell ({shear.attrs['point']}), aligned on rearrangements: "
+           f"{crossing}, largest at {top:+.2f} s")  # fmt: skip
     if drum is not None and "aligned_lambda_bar_onset" in drum:
         lag = _v(drum, "onset_lag_aligned")
         a.plot(drum["tau_onset"], drum["aligned_lambda_bar_onset"], color="tab:blue",
-               label=f"drum, aligned on each pile's flow onset: lag {lag:.2f} s")  # fmt: skip
+               label=f"drum, aligned on each pile's flow onset: crosses zero at "
+               f"{lag:+.2f} s")  # fmt: skip
     a.axhline(0.0, color="0.5", lw=0.8)
     a.axvline(0.0, color="k", lw=0.8, ls=":")
     a.set(xlabel="time after the event [s]", ylabel="λ̄ [1/t0]",
