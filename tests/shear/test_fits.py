@@ -94,8 +94,9 @@ def test_zero_crossing_in_phi_is_interpolated_between_points():
     assert res.value == pytest.approx(exact, rel=1e-12)
     assert abs(res.value - 0.83) < 0.001
     assert res.ci_low < res.value < res.ci_high and res.ci_high - res.ci_low < 0.005
-    # no crossing: NaN
+    # no crossing, or a single point: NaN
     assert np.isnan(phi_crossing(phis, [m - 1.0 for m in means], cfg).value)
+    assert np.isnan(phi_crossing(phis[:1], means[:1], cfg).value)
 
 
 def test_a_bump_of_lambda_before_the_events_is_timed_though_it_never_turns_positive():
