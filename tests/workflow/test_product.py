@@ -57,7 +57,9 @@ KNOBS = {
         batch_size_key=("ensemble", "batch_size"),
         grow_rules=frozenset({"drum_init", "drum_runs"}),
         sim_rules=frozenset({"drum_init", "drum_runs"}),
-        fit_rules=frozenset({"drum_fits", "drum_summary", "drum_figures"}),
+        # the shear cell's contrast figure shows the drum's aligned λ̄: a drum fit edit
+        # redraws it too
+        fit_rules=frozenset({"drum_fits", "drum_summary", "drum_figures", "shear_figures"}),
         figure_rule="drum_figures",
         batch_glob="runs/*/batch_*.nc",
     ),
