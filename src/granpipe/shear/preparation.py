@@ -46,12 +46,12 @@ def placement(cell: ShearCell, scale: float, gap: float, rng: np.random.Generato
     return sites[chosen[rng.permutation(n)]]
 
 
-def grow(cell: ShearCell, prep: Mapping, rng: np.random.Generator, *, on_stage=None):
-    """Place, grow and shear one replica (steps 1-3); returns its engine state, sheared
-    for ``steady_s`` with the inner ring turned by its angle then.
+def grow(cell: ShearCell, prep: Mapping, rng: np.random.Generator):
+    """Place, grow and shear one replica (steps 1-3); returns ``(sim, state)``: the turning
+    cell's engine and the state sheared for ``steady_s``.
 
     ``prep``: ``start_scale``, ``gap``, ``growth_stages``, ``growth_s``, ``steady_s``
-    (seconds, t0 = ``cell.physics['t0_s']``); ``on_stage(i)`` is called after each stage.
+    (seconds, t0 = ``cell.physics['t0_s']``).
     """
     dt_s = float(cell.physics["dt"]) * float(cell.physics["t0_s"])
     s0 = float(prep["start_scale"])
@@ -66,8 +66,6 @@ def grow(cell: ShearCell, prep: Mapping, rng: np.random.Generator, *, on_stage=N
         still.run(state, per_stage)
         pos = state.positions[: cell.n_mobile].copy()
         vel = state.velocities[: cell.n_mobile].copy()
-        if on_stage is not None:
-            on_stage(k)
     sim = cell.simulation()
     state = cell.new_state(sim, pos, vel)
     sim.run(state, round(float(prep["steady_s"]) / dt_s))
