@@ -65,6 +65,11 @@ def test_inflation_when_sigma_too_small():
     assert np.median(err_auto / err_abs) == pytest.approx(10.0, rel=0.1)
 
 
+def test_first_crossing_of_a_single_sample_is_nan():
+    assert np.isnan(first_crossing(np.array([0.8]), np.array([-1.0])))
+    assert np.isnan(first_crossing(np.array([0.8]), np.ones((5, 1)))).all()
+
+
 def test_first_crossing_and_directions():
     t = np.linspace(0, 10, 1001)
     y = np.sin(t)  # crossings at pi (down), 2pi (up), 3pi (down)

@@ -303,10 +303,13 @@ def first_crossing(t, Y, search=None, direction: int = 0, hold: int = 0) -> np.n
         the next ``hold`` samples, all inside the search range: a noisy curve crosses
         zero many times before it changes sign for good.
 
-    Returns (...,) the linearly interpolated crossing time, NaN if none.
+    Returns (...,) the linearly interpolated crossing time, NaN if none (or fewer than two
+    samples).
     """
     t = np.asarray(t, dtype=np.float64)
     Y = np.asarray(Y, dtype=np.float64)
+    if t.size < 2:  # one sample brackets no crossing
+        return np.full(Y.shape[:-1], np.nan)
     if search is None:
         inside = np.ones_like(t, dtype=bool)
     else:  # bounds may be arrays (..., 1), one search range per series

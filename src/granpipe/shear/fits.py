@@ -174,9 +174,6 @@ def phi_crossing(phis, replica_means, cfg: Mapping) -> FitResult:
     """
     phis = np.asarray(phis, dtype=np.float64)
     means = np.array([np.mean(m) for m in replica_means])
-    if len(phis) < 2:
-        return FitResult("phi_lambda_zero", math.nan, math.nan, "1", n=len(phis),
-                         note="one packing fraction: no crossing to locate")  # fmt: skip
     value = float(first_crossing(phis, means, None, 0))
     res = FitResult("phi_lambda_zero", value, math.nan, "1", n=len(phis),
                     method="first zero crossing in φ of the replica-mean time average "

@@ -56,12 +56,7 @@ def run_replica(section: Mapping, replica: int, log: Callable[[str], None] = lam
     place, tangent = rng.spawn(2)
     sim, state = grow(cell, section["preparation"], place)
     n = cell.n_mobile
-    mask = tangent.random((n, 4)) < float(section["protocol"]["tangent_fraction"])
-    du = np.where(mask, tangent.uniform(-1.0, 1.0, (n, 4)), 0.0)
-    if not du.any():  # never the zero vector
-        du[0, 0] = 1.0
-    pad = np.zeros((len(cell.walls), 2))
-    sim.set_tangent(state, np.r_[du[:, :2], pad], np.r_[du[:, 2:], pad])
+    sim.random_tangent(state, tangent, float(section["protocol"]["tangent_fraction"]))
     sim.run(state, st.align, tangent=True)
     ev = section["events"]
     radii = np.r_[cell.diameters, np.full(len(cell.walls), cell.physics["d_wall"])] / 2
