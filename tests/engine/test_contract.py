@@ -156,6 +156,40 @@ def test_twin_trajectory_agrees_with_the_tangent_vector(piles, name):
     assert 5 < e5 / e6 < 20
 
 
+
+@pytest.mark.parametrize("name", sorted(LAWS))
+def test_local_lyapunov_counts_each_disks_spin_perturbation(piles, name):
+    """A record of stride 1 equals ``lambda = (1/2dt) ln(|du(t)|²_S / |du(t - dt)|²_S)``
+    computed by hand, S the mobile disks with at least two contacts and, for laws with
+    spin, ``|du_i|² = |dr_i|² + |dv_i|² + (a_i domega_i)²`` (the spin's perturbation as a
+    velocity at the rim). For those laws the value without the spin's part is also
+    computed and must differ: the test sees a dropped or misplaced spin term."""
+    sim, settled = piles[name]
+    state = settled.copy()
+    rng = np.random.default_rng(4)
+    mob = state.mobile
+    du = np.where(mob[:, None, None], rng.uniform(-1, 1, (state.n, 2, 2)), 0.0)
+    dspin = np.where(mob, rng.uniform(-20, 20, state.n), 0.0) if sim.law.has_spin else None
+    sim.set_tangent(state, du[:, 0], du[:, 1], dspin)
+
+    def norms(st, spin=True):
+        tr, tv = st.tangent
+        q = (tr**2).sum(axis=1) + (tv**2).sum(axis=1)
+        return q + (st.radii * st.tangent_spin) ** 2 if spin and sim.law.has_spin else q
+
+    prev, prev_bare = norms(state), norms(state, spin=False)
+    for _ in range(40):
+        rec = sim.run(state, 1, stride=1, tangent=True)
+        s = mob & (state.contacts >= 2)
+        q, bare = norms(state), norms(state, spin=False)
+        lam = 0.5 * np.log(q[s].sum() / prev[s].sum()) / sim.dt
+        assert rec.lyapunov_count[0] == 1
+        assert rec.local_lyapunov[0] == pytest.approx(lam, rel=1e-12, abs=1e-9)
+        if sim.law.has_spin:
+            lam_bare = 0.5 * np.log(bare[s].sum() / prev_bare[s].sum()) / sim.dt
+            assert abs(lam_bare - lam) > 1e-6
+        prev, prev_bare = q, bare
+
 @pytest.mark.parametrize("name", [n for n, law in sorted(LAWS.items()) if law.has_history])
 def test_a_state_rebuilt_with_its_shear_history_continues_as_the_saved_one(piles, name):
     """Positions, velocities, spins and shear histories are the whole state: a copy made

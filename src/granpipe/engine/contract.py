@@ -58,6 +58,8 @@ __all__ = [
     "pair_force_jvp",
     "perturbed_kinematics",
     "perturbed_force",
+    "truncated_spring",
+    "truncated_spring_jvp",
     "law_leaf",
     "law_has_spin",
     "law_has_history",
@@ -169,6 +171,31 @@ def perturbed_force(nx, ny, psi, dr, f_n, f_t, dfn, dft, lever_i, lever_j):
         -dlev * f_t - lever_i * dft,
         -dlev * f_t - lever_j * dft,
     )
+
+
+@njit
+def truncated_spring(k_t, inv_k_t, xi, u, damp, cap, dt):
+    """The tangential spring with history truncated at Coulomb (Cundall & Strack 1979, as
+    LAMMPS' ``gran/hooke/history``), shared by the laws with history: ``xi' = xi + u dt``,
+    ``f_t = -k_t xi' - damp``; where ``|f_t| > cap`` (slip) ``f_t = cap sign(f_t)`` and
+    the spring is reset, ``xi' = -(f_t + damp) / k_t``. Returns ``(f_t, xi', slip)``."""
+    xi_new = xi + u * dt
+    f_t = -k_t * xi_new - damp
+    slip = abs(f_t) > cap
+    capped = cap if f_t > 0.0 else -cap
+    xi_new = -(capped + damp) * inv_k_t if slip else xi_new
+    f_t = capped if slip else f_t
+    return f_t, xi_new, slip
+
+
+@njit
+def truncated_spring_jvp(k_t, inv_k_t, dxi, du, ddamp, dft_capped, stick, dt):
+    """The perturbations ``(df_t, dxi')`` of :func:`truncated_spring` on its piece: the
+    spring's where it sticks, else ``dft_capped`` (the cap's) with the reset spring's."""
+    dxi_stick = dxi + du * dt
+    dft = -k_t * dxi_stick - ddamp if stick else dft_capped
+    dxi_new = dxi_stick if stick else -(dft_capped + ddamp) * inv_k_t
+    return dft, dxi_new
 
 
 def _instance_class(law):

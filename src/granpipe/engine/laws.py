@@ -45,6 +45,8 @@ from granpipe.engine.contract import (
     pair_force_jvp,
     perturbed_force,
     perturbed_kinematics,
+    truncated_spring,
+    truncated_spring_jvp,
 )
 from granpipe.errors import ConfigError
 
@@ -117,16 +119,11 @@ def _box_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi
     vn = vx * nx + vy * ny
     vt = vy * nx - vx * ny - lever_i * w_i - lever_j * w_j
     f_n = law.kappa_n * overlap - law.gamma_n * m_eff * vn
-    xi_new = xi + vt * dt
-    damp = law.gamma_t * m_eff * vt
-    f_t = -law.kappa_t * xi_new - damp
-    limit = law.mu * abs(f_n)
-    slip = abs(f_t) > limit
-    capped = limit if f_t > 0.0 else -limit
     # kappa_t = 0 keeps no elastic shear (1/kappa_t is hoisted out of the pass's loop)
     inv_kt = 1.0 / law.kappa_t if law.kappa_t > 0.0 else 0.0
-    xi_new = -(capped + damp) * inv_kt if slip else xi_new
-    f_t = capped if slip else f_t
+    f_t, xi_new, slip = truncated_spring(
+        law.kappa_t, inv_kt, xi, vt, law.gamma_t * m_eff * vt, law.mu * abs(f_n), dt
+    )
     fx = f_n * nx - f_t * ny
     fy = f_n * ny + f_t * nx
     return fx, fy, -lever_i * f_t, -lever_j * f_t, xi_new, f_n, f_t, 1 if slip else 0
@@ -145,13 +142,11 @@ def _box_jvp(
     dfn = -law.kappa_n * dr - law.gamma_n * m_eff * dvn
     sgn = 1.0 if f_t > 0.0 else -1.0
     sfn = 1.0 if f_n > 0.0 else -1.0
-    ddamp = law.gamma_t * m_eff * dvt
     inv_kt = 1.0 / law.kappa_t if law.kappa_t > 0.0 else 0.0
-    dft_slip = sgn * law.mu * sfn * dfn
-    dxi_stick = dxi + dvt * dt
-    slip = piece == 1
-    dft = dft_slip if slip else -law.kappa_t * dxi_stick - ddamp
-    dxi_new = -(dft_slip + ddamp) * inv_kt if slip else dxi_stick
+    dft, dxi_new = truncated_spring_jvp(
+        law.kappa_t, inv_kt, dxi, dvt, law.gamma_t * m_eff * dvt, sgn * law.mu * sfn * dfn,
+        piece != 1, dt,
+    )  # fmt: skip
     dfx, dfy, dtau_i, dtau_j = perturbed_force(
         nx, ny, psi, dr, f_n, f_t, dfn, dft, lever_i, lever_j
     )

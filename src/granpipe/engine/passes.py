@@ -937,12 +937,13 @@ def tangent_kicks(law, vec, sca, ivec, dt, stage):
     n = prev.shape[0]
     n4 = n - n % 4
     h = 0.5 * dt
-    if stage == 0:
-        q = simd.tangent8_first(tr, tv, tf, im, mob, prev, contacts, h, dt, n4)
-    elif stage == 1:
-        q = simd.tangent8(tr, tv, tf, im, mob, prev, contacts, h, dt, n4)
+    spin = law_has_spin(law)
+    tw, tt, inv_i, radius = sca[L.T_SPIN], sca[L.T_TORQUE], sca[L.INV_INERTIA], sca[L.RADIUS]
+    if spin:
+        q = _tangent_groups(stage, tr, tv, tf, im, mob, prev, contacts, h, dt, n4,
+                            (tw, tt, inv_i, radius))  # fmt: skip
     else:
-        q = simd.tangent8_last(tr, tv, tf, im, mob, prev, contacts, h, dt, n4)
+        q = _tangent_groups(stage, tr, tv, tf, im, mob, prev, contacts, h, dt, n4, ())
     num = q[0]
     den = q[4]
     total = q[8]
@@ -953,8 +954,14 @@ def tangent_kicks(law, vec, sca, ivec, dt, stage):
         ay = h * (tf[y] * im[y])
         ux = tv[x] + ax
         uy = tv[y] + ay
+        qi = (tr[x] * tr[x] + tr[y] * tr[y] + ux * ux + uy * uy) * mob[x]
+        if spin:
+            a = h * (tt[i] * inv_i[i])
+            u = tw[i] + a
+            rw = radius[i] * u
+            qi += rw * rw * mob[x]
+            tw[i] = u if stage != 1 else u + a
         if stage != 0:
-            qi = (tr[x] * tr[x] + tr[y] * tr[y] + ux * ux + uy * uy) * mob[x]
             s = contacts[i] >= 2
             num += qi if s else 0.0
             den += prev[i] if s else 0.0
@@ -973,22 +980,18 @@ def tangent_kicks(law, vec, sca, ivec, dt, stage):
     num = (num + q[1]) + (q[2] + q[3])
     den = (den + q[5]) + (q[6] + q[7])
     total = (total + q[9]) + (q[10] + q[11])
-    if law_has_spin(law):
-        tw = sca[L.T_SPIN]
-        tt = sca[L.T_TORQUE]
-        inv_i = sca[L.INV_INERTIA]
-        radius = sca[L.RADIUS]
-        for i in range(n):
-            a = h * (tt[i] * inv_i[i])
-            u = tw[i] + a
-            if stage != 0:
-                rw = radius[i] * u
-                qi = rw * rw * mob[2 * i]
-                prev[i] += qi
-                num += qi if contacts[i] >= 2 else 0.0
-                total += qi
-            tw[i] = u if stage != 1 else u + a
     return num, den, total
+
+
+@njit
+def _tangent_groups(stage, tr, tv, tf, im, mob, prev, contacts, h, dt, n4, spins):
+    """The disks ``i < n4`` of :func:`tangent_kicks` in groups of four (``spins``: the
+    spin rows of a law with spin, else ``()``)."""
+    if stage == 0:
+        return simd.tangent8_first(tr, tv, tf, im, mob, prev, contacts, h, dt, n4, spins)
+    if stage == 1:
+        return simd.tangent8(tr, tv, tf, im, mob, prev, contacts, h, dt, n4, spins)
+    return simd.tangent8_last(tr, tv, tf, im, mob, prev, contacts, h, dt, n4, spins)
 
 
 @njit

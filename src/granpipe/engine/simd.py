@@ -239,17 +239,25 @@ def _tangent8(mode):
     ``prev_i = q_i``. Mode 1 then kicks and drifts (``tv = u + a``, ``tr += dt tv``); mode
     2 (the end of a run) leaves ``tv = u``. Each sum comes as four lanes (lane ``c`` over
     the disks ``i = c mod 4``): ``(num0..3, den0..3, total0..3)``, zero in mode 0.
+    ``spins`` is ``()`` or, for laws with spin, the rows ``(tw, tt, inv_i, radius)``: the
+    spin's perturbation is kicked the same way (``a = h (tt inv_i)``) and ``((a u)²)
+    mob_i`` of its half-kicked value ``u`` is added to ``q_i``.
     """
 
-    def typer(typingctx, tr, tv, tf, im, mob, prev, contacts, h, dt, n):
-        if not _f64_vectors(tr, tv, tf, im, mob, prev):
+    def typer(typingctx, tr, tv, tf, im, mob, prev, contacts, h, dt, n, spins):
+        if not _f64_vectors(tr, tv, tf, im, mob, prev, *spins) or len(spins) not in (0, 4):
             return None
         ret = types.UniTuple(types.float64, 12)
-        sig = ret(tr, tv, tf, im, mob, prev, contacts, h, dt, n)
+        sig = ret(tr, tv, tf, im, mob, prev, contacts, h, dt, n, spins)
 
         def codegen(context, builder, signature, args):
             ra, va, fa, ia, ma, qa, ca = _arrays(context, builder, sig, args, 7)
+            spin = [
+                context.make_array(t)(context, builder, builder.extract_value(args[10], c))
+                for c, t in enumerate(sig.args[10])
+            ]
             h8, dt8 = (_bcast(builder, args[c], 8) for c in (7, 8))
+            h4 = _bcast(builder, args[7], 4)
             n = context.cast(builder, args[9], sig.args[9], types.intp)
             zero = ir.Constant(_V4, [0.0] * 4)
             two = ir.Constant(_I64x4, [2] * 4)
@@ -269,6 +277,16 @@ def _tangent8(mode):
                     q = builder.fadd(builder.fmul(rx, rx), builder.fmul(ry, ry))
                     q = builder.fadd(q, builder.fmul(ux, ux))
                     q = builder.fmul(builder.fadd(q, builder.fmul(uy, uy)), mx)
+                if spin:
+                    wp, tp, jp, ap = (_vec_at(builder, x.data, i, 4) for x in spin)
+                    tt, ji = builder.load(tp, align=8), builder.load(jp, align=8)
+                    sa = builder.fmul(h4, builder.fmul(tt, ji))
+                    su = builder.fadd(builder.load(wp, align=8), sa)
+                    builder.store(builder.fadd(su, sa) if mode == 1 else su, wp, align=8)
+                    if mode != 0:
+                        rw = builder.fmul(builder.load(ap, align=8), su)
+                        q = builder.fadd(q, builder.fmul(builder.fmul(rw, rw), mx))
+                if mode != 0:
                     cp = builder.bitcast(builder.gep(ca.data, [i]), _I64x4.as_pointer())
                     s = builder.icmp_signed(">=", builder.load(cp, align=8), two)
                     pp = _vec_at(builder, qa.data, i, 4)
@@ -297,44 +315,6 @@ def _tangent8(mode):
 tangent8_first = _tangent8(0)
 tangent8 = _tangent8(1)
 tangent8_last = _tangent8(2)
-
-
-# --------------------------------------------------------------------------- lanes
-
-
-class _Lanes:
-    """Four float64 lanes (``<4 x double>``) with the IEEE arithmetic of Python floats."""
-
-    __slots__ = ("b", "v")
-
-    def __init__(self, b, v):
-        self.b = b
-        self.v = v
-
-    def _of(self, o):
-        if isinstance(o, _Lanes):
-            return o.v
-        if isinstance(o, (int, float)) and not isinstance(o, bool):
-            return ir.Constant(_V4, [float(o)] * 4)
-        raise TypeError(f"cannot combine four lanes with {type(o).__name__}")
-
-    def _op(self, name, a, c):
-        return _Lanes(self.b, getattr(self.b, name)(a, c))
-
-    def __add__(self, o):
-        return self._op("fadd", self.v, self._of(o))
-
-    def __sub__(self, o):
-        return self._op("fsub", self.v, self._of(o))
-
-    def __mul__(self, o):
-        return self._op("fmul", self.v, self._of(o))
-
-    def __gt__(self, o):
-        """Lane comparison ``self > o`` (ordered), an ``<4 x i1>``."""
-        return self.b.fcmp_ordered(">", self.v, self._of(o))
-
-    __hash__ = None
 
 
 def _call(b, name, args):
@@ -407,7 +387,7 @@ class _Frame:
             v = ir.Constant(vt, ir.Undefined)
             for lane, kl in enumerate(at):
                 v = self.b.insert_element(v, self.scalar(name, kl), ir.Constant(_I32, lane))
-        return _Lanes(self.b, v) if elem is _F64 else v
+        return v
 
     def _diffs(self, name, i, j, vt):
         """Per pair, ``name[w i .. w i + w-1] - name[w j .. w j + w-1]`` as one vector of
@@ -429,17 +409,12 @@ class _Frame:
         m4 = ir.VectorType(_I32, 4)
         lo = b.shuffle_vector(d[0], d[1], ir.Constant(m4, [0, 1, 2, 3]))
         hi = b.shuffle_vector(d[2], d[3], ir.Constant(m4, [0, 1, 2, 3]))
-        return [
-            _Lanes(b, b.shuffle_vector(lo, hi, ir.Constant(m4, [c, c + 2, c + 4, c + 6])))
-            for c in (0, 1)
-        ]
+        return [b.shuffle_vector(lo, hi, ir.Constant(m4, [c, c + 2, c + 4, c + 6])) for c in (0, 1)]
 
     def store_lanes(self, name, v, off=None):
-        """``name[off + k .. off + k+3] = v`` (lanes or an integer vector)."""
+        """``name[off + k .. off + k+3] = v`` (a vector of four lanes)."""
         b = self.b
         at = self._at(off)
-        if isinstance(v, _Lanes):
-            v = v.v
         if self.full:
             b.store(v, b.bitcast(self.ptr(name, at[0]), v.type.as_pointer()), align=8)
             return
@@ -466,7 +441,8 @@ def touch_bits4(typingctx, pos, pi, pj, k, ssum):
         fr = _Frame(context, builder, signature, args, ("pos", "pi", "pj", "k", "ssum"), True)
         dx, dy = fr.xy_diff("pos", fr.index("pi"), fr.index("pj"))
         s = fr.lanes("ssum")
-        apart = dx * dx + dy * dy > s * s
+        r2 = builder.fadd(builder.fmul(dx, dx), builder.fmul(dy, dy))
+        apart = builder.fcmp_ordered(">", r2, builder.fmul(s, s))
         bits = builder.bitcast(apart, ir.IntType(4))
         return builder.zext(builder.xor(bits, ir.Constant(ir.IntType(4), 15)), _I64)
 
@@ -500,7 +476,7 @@ def _gather4(full, spins):
                     x = fr.scalar("w", il)
                     lanes = builder.insert_element(lanes, x, ir.Constant(_I32, lane))
                 at = builder.add(fr.val["woff"], fr.row(c))
-                fr.store_lanes("rows", _Lanes(builder, lanes), at)
+                fr.store_lanes("rows", lanes, at)
         return context.get_dummy_value()
 
     if spins:

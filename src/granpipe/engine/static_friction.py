@@ -46,6 +46,8 @@ from granpipe.engine.contract import (
     pair_force_jvp,
     perturbed_force,
     perturbed_kinematics,
+    truncated_spring,
+    truncated_spring_jvp,
 )
 
 __all__ = ["StaticFrictionLaw", "StaticFrictionParams", "K_T_OVER_K_N"]
@@ -76,13 +78,8 @@ def _force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt
     f_n = -law.k_n * delta - law.gamma_n * vn
     cap = law.mu * f_n
     cap = cap if cap > 0.0 else 0.0
-    xi_new = xi + u * dt
-    damp = law.gamma_t * u
-    f_t = -law.k_t * xi_new - damp
-    slip = abs(f_t) > cap
-    if slip:
-        f_t = cap if f_t > 0.0 else -cap
-        xi_new = -(f_t + damp) / law.k_t
+    # 1/k_t is hoisted out of the pass's loop
+    f_t, xi_new, slip = truncated_spring(law.k_t, 1.0 / law.k_t, xi, u, law.gamma_t * u, cap, dt)
     piece = NO_FRICTION if f_n <= 0.0 else (SLIP if slip else STICK)
     fx = f_n * nx - f_t * ny
     fy = f_n * ny + f_t * nx
@@ -98,15 +95,10 @@ def _jvp(
         nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, ddx, ddy, dvx, dvy, dw_i, dw_j
     )
     dfn = -law.k_n * dr - law.gamma_n * dvn
-    if piece == STICK:
-        dxi_new = dxi + du * dt
-        dft = -law.k_t * dxi_new - law.gamma_t * du
-    else:
-        if piece == SLIP:
-            dft = law.mu * dfn if f_t > 0.0 else -law.mu * dfn
-        else:
-            dft = 0.0
-        dxi_new = -(dft + law.gamma_t * du) / law.k_t
+    dft_capped = (law.mu * dfn if f_t > 0.0 else -law.mu * dfn) if piece == SLIP else 0.0
+    dft, dxi_new = truncated_spring_jvp(
+        law.k_t, 1.0 / law.k_t, dxi, du, law.gamma_t * du, dft_capped, piece == STICK, dt
+    )
     dfx, dfy, dtau_i, dtau_j = perturbed_force(
         nx, ny, psi, dr, f_n, f_t, dfn, dft, lever_i, lever_j
     )
