@@ -6,9 +6,10 @@ trajectories on a settled pile in a turning drum and against flat walls; frictio
 against physics (a disk sliding on a floor decelerates at mu g in the Coulomb regime
 and, below it, sticks or decays at the viscous rate; on an incline a law with static
 friction holds below atan(mu) and slides above); restitution at an effective mass
-other than one half; and the compiled row loop of the passes vectorised (packed square
-roots and divisions). For the static-friction law also conservation (momentum, angular
-momentum with spin, energy of an elastic sticking contact).
+other than one half; lambda against its definition, with the spin's part of the norm;
+and the compiled row loop of the passes vectorised (packed square roots and divisions).
+For the static-friction law also conservation (momentum, angular momentum with spin,
+energy of an elastic sticking contact).
 """
 
 import numpy as np
@@ -156,7 +157,6 @@ def test_twin_trajectory_agrees_with_the_tangent_vector(piles, name):
     assert 5 < e5 / e6 < 20
 
 
-
 @pytest.mark.parametrize("name", sorted(LAWS))
 def test_local_lyapunov_counts_each_disks_spin_perturbation(piles, name):
     """A record of stride 1 equals ``lambda = (1/2dt) ln(|du(t)|²_S / |du(t - dt)|²_S)``
@@ -189,6 +189,7 @@ def test_local_lyapunov_counts_each_disks_spin_perturbation(piles, name):
             lam_bare = 0.5 * np.log(bare[s].sum() / prev_bare[s].sum()) / sim.dt
             assert abs(lam_bare - lam) > 1e-6
         prev, prev_bare = q, bare
+
 
 @pytest.mark.parametrize("name", [n for n, law in sorted(LAWS.items()) if law.has_history])
 def test_a_state_rebuilt_with_its_shear_history_continues_as_the_saved_one(piles, name):

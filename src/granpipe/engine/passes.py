@@ -924,8 +924,9 @@ def tangent_kicks(law, vec, sca, ivec, dt, stage):
     two contacts at that step (walls count), ``total = |du(t)|²`` over mobile disks
     (zero in stage 0). Four disks a group (:func:`granpipe.engine.simd.tangent8`: each
     sum in four lanes over disks ``i = c mod 4``, added in a fixed order, so the result
-    does not depend on anything but the state); the remaining disks below; the spins'
-    perturbations (laws with spin) after, adding ``(a domega)²`` to each disk's norm.
+    does not depend on anything but the state); the remaining disks below. With spin,
+    the spins' perturbations are kicked alongside and ``(a domega)²`` is added to each
+    disk's norm.
     """
     tr = _flat(vec[L.T_POS])
     tv = _flat(vec[L.T_VEL])
