@@ -37,6 +37,7 @@ def synthetic_runs(lead, n_rep=6, seed=0, bump=None):
             "global_speed": (("replica", "time"), np.ones_like(lam)),
             "network_changes": (("replica", "sample"), changes),
             "speed_lyapunov_correlation": (("replica", "sample"), np.full(changes.shape, 0.2)),
+            "lyapunov_all": (("replica", "sample"), lam[:, :: round(SAMPLE / BLOCK)] + 0.3),
             "snapshot_positions": (("replica", "disk", "xy"), np.zeros((n_rep, n, 2))),
             "snapshot_du": (("replica", "disk"), np.ones((n_rep, n))),
             "snapshot_speed": (("replica", "disk"), np.ones((n_rep, n))),
@@ -82,6 +83,10 @@ def test_lead_time_of_a_known_step_is_recovered(lead):
     # the time average: -0.5 plus the step's share of the record
     assert r["lambda_mean"].value == pytest.approx(
         float(ds["local_lyapunov"].values.mean()), rel=1e-12)  # fmt: skip
+    # the whole tangent vector's rate: its own mean, not λ's
+    assert r["lambda_all_mean"].value == pytest.approx(
+        float(ds["lyapunov_all"].values.mean()), rel=1e-12)  # fmt: skip
+    assert abs(r["lambda_all_mean"].value - r["lambda_mean"].value) > 0.2
 
 
 def test_zero_crossing_in_phi_is_interpolated_between_points():

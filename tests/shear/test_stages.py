@@ -48,7 +48,7 @@ def test_summary_and_figures_from_every_point_and_only_those(two_points, tmp_pat
     out = summary_stage(layout.summary_params(cfg), fits, tmp_path / "summary.csv")
     text = out.read_text()
     assert "lambda_mean[phi=0.8]" in text and "lambda_mean[phi=0.82]" in text
-    assert "phi_lambda_zero" in text
+    assert "phi_lambda_zero" in text and "phi_lambda_all_zero" in text
     paths = figures_stage(layout.figures_params(cfg), fits, tmp_path / "figures")
     assert sorted(p.name for p in paths) == sorted(
         f"{n}.{e}" for n in layout.FIGURES for e in ("png", "pdf"))  # fmt: skip

@@ -36,12 +36,15 @@ def _v(ds, name):
 def fig1_lambda_vs_phi(fits: dict[str, xr.Dataset]) -> plt.Figure:
     fig, (a, b) = plt.subplots(1, 2, figsize=(9, 3.6))
     phi = np.array([float(ds.attrs["phi"]) for ds in fits.values()])
-    m = np.array([_v(ds, "lambda_mean") for ds in fits.values()])
-    lo = np.array([_v(ds, "lambda_mean_ci_low") for ds in fits.values()])
-    hi = np.array([_v(ds, "lambda_mean_ci_high") for ds in fits.values()])
-    err = np.nan_to_num(np.vstack([m - lo, hi - m]))
-    a.errorbar(phi, m, yerr=err, fmt="o-", capsize=3)
+    for q, label in (("lambda_mean", "λ(t) over disks with ≥ 2 contacts (drum paper)"),
+                     ("lambda_all_mean", "whole tangent vector (rattlers included)")):  # fmt: skip
+        m = np.array([_v(ds, q) for ds in fits.values()])
+        lo = np.array([_v(ds, f"{q}_ci_low") for ds in fits.values()])
+        hi = np.array([_v(ds, f"{q}_ci_high") for ds in fits.values()])
+        err = np.nan_to_num(np.vstack([m - lo, hi - m]))
+        a.errorbar(phi, m, yerr=err, fmt="o-", capsize=3, label=label)
     a.axhline(0.0, color="0.5", lw=0.8)
+    a.legend(fontsize=7)
     a.set(xlabel="packing fraction φ", ylabel="⟨λ⟩ [1/t0]", title="time-averaged λ")
     rate = [_v(ds, "event_rate") for ds in fits.values()]
     b.plot(phi, rate, "s-", color="tab:green")

@@ -1,14 +1,17 @@
 """What Ref. [20] measured, at one φ (:func:`point_fits`) and across φ
 (:func:`phi_crossing`); definitions and tests: docs/shear.md, "Analysis".
 
-``lambda_mean`` (time average of λ per replica, then over replicas), ``event_rate``,
+``lambda_mean`` (time average of λ per replica, then over replicas), ``lambda_all_mean``
+(the same of the whole tangent vector's growth rate, rattlers included: the maximal
+exponent; docs/shear.md, "Two readings of λ"), ``event_rate``,
 ``event_lag`` (the first lasting upward zero crossing of λ̄, Eq. 2, of λ aligned on each
 replica's own events, minus the event: the drum's aligned onset lag, by the same
 functions) and ``lead_time`` = −``event_lag``, ``lambda_peak_time`` (where that λ̄ is
 largest), ``lambda_excess_before``/``_after`` (λ's excess just before and after the
 events over its level far from them), ``correlation_*`` (C(|δu|, |v|) over each
 replica's samples, all, near events or elsewhere, then over replicas); across φ,
-``phi_lambda_zero``. Intervals: bootstrap over replicas (with all their events).
+``phi_lambda_zero`` and ``phi_lambda_all_zero``. Intervals: bootstrap over replicas
+(with all their events).
 """
 
 from __future__ import annotations
@@ -65,6 +68,10 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
     per_replica = np.nanmean(lam, axis=1)
     res = [_over_replicas("lambda_mean", per_replica, "1/t0", "time average of λ(t) over the "
                           "record, mean over replicas", cfg)]  # fmt: skip
+    per_replica_all = ds["lyapunov_all"].values.mean(axis=1)
+    res.append(_over_replicas("lambda_all_mean", per_replica_all, "1/t0", "growth rate of "
+                              "the whole tangent vector (all mobile disks, rattlers included) "
+                              "over the record, mean over replicas", cfg))  # fmt: skip
     events = event_times(ds, params["events"])
     n_ev = sum(len(e) for e in events)
     record = float(ds["time"].values[-1] + ds.attrs["block_s"] / 2)
@@ -142,6 +149,9 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
         {
             "lambda_replica_mean": ("replica", per_replica, {"units": "1/t0", "long_name":
                                     "time average of λ per replica"}),
+            "lambda_all_replica_mean": ("replica", per_replica_all, {"units": "1/t0",
+                                        "long_name": "growth rate of the whole tangent vector "
+                                        "per replica"}),
             "aligned_lambda": ("tau", mean, {"units": "1/t0", "long_name": "λ averaged over "
                                "the events, each replica aligned on its own"}),
             "aligned_lambda_bar": ("tau", bar(mean),
@@ -163,21 +173,22 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
     return res, curves
 
 
-def phi_crossing(phis, replica_means, cfg: Mapping) -> FitResult:
-    """φ where ⟨λ⟩ first crosses zero (either way: Ref. [20] finds it chaotic below the
-    crossing, not above; the direction is a result here), by linear interpolation between
-    the grid points; bootstrap over each point's replicas.
+def phi_crossing(phis, replica_means, cfg: Mapping, name="phi_lambda_zero",
+                 of="the time average of λ") -> FitResult:  # fmt: skip
+    """φ where the replicas' mean of ``of`` first crosses zero (either way: Ref. [20] finds
+    it chaotic below the crossing, not above; the direction is a result here), by linear
+    interpolation between the grid points; bootstrap over each point's replicas.
 
     Parameters
     ----------
     phis : (P,) increasing; replica_means : P arrays (R_p,) [1/t0], each point's replicas
+    name, of : the row's quantity and what its method names
     """
     phis = np.asarray(phis, dtype=np.float64)
     means = np.array([np.mean(m) for m in replica_means])
     value = float(first_crossing(phis, means, None, 0))
-    res = FitResult("phi_lambda_zero", value, math.nan, "1", n=len(phis),
-                    method="first zero crossing in φ of the replica-mean time average "
-                    "of λ, linear between grid points")  # fmt: skip
+    res = FitResult(name, value, math.nan, "1", n=len(phis), method="first zero crossing in "
+                    f"φ of the replica mean of {of}, linear between grid points")  # fmt: skip
     n = int(cfg["bootstrap_resamples"])
     if n > 0 and all(len(m) > 1 for m in replica_means):
         rng = np.random.default_rng(int(cfg["seed"]))

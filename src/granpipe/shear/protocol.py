@@ -9,9 +9,11 @@
 3. Record ``protocol.record_s`` from t = 0: block means of λ(t) (rattlers excluded: the
    norm over disks with at least two contacts, as the drum) and V(t) over
    ``protocol.block_s``; every ``protocol.sample_s`` the neighbour network's changes
-   since the sample before and the correlation C(|δu|, |v|) over the mobile disks
-   (:mod:`granpipe.shear.measures`), so nothing per disk and step is stored; at the end a
-   snapshot (positions, |δu_i|, |v_i|) for the figure of where the chaos lives.
+   since the sample before, the correlation C(|δu|, |v|) over the mobile disks
+   (:mod:`granpipe.shear.measures`) and the growth rate of the whole tangent vector over
+   the sample (all mobile disks, rattlers included: the finite-time maximal exponent,
+   docs/shear.md, "Two readings of λ"), so nothing per disk and step is stored; at the
+   end a snapshot (positions, |δu_i|, |v_i|) for the figure of where the chaos lives.
 
 A replica's stream is ``replica_rng("shear", physics, replica)`` with ``physics`` the
 point's section: its first child places the disks, the second draws the tangent vector.
@@ -19,6 +21,7 @@ point's section: its first child places the disks, the second draws the tangent 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 
 import numpy as np
@@ -65,11 +68,18 @@ def run_replica(section: Mapping, replica: int, log: Callable[[str], None] = lam
     def edges():
         return neighbour_edges(state.positions, radii, mobile, float(ev["edge_cutoff"]))
 
+    def log_norm():  # ln |du| over the mobile disks, at its true size (the engine rescales)
+        dr, dv = state.tangent_stored
+        return 0.5 * math.log(np.sum(dr[:n] ** 2) + np.sum(dv[:n] ** 2)) + (
+            state.tangent_log2_scale * math.log(2.0)
+        )
+
     lam = np.empty(st.n_blocks)
     speed = np.empty(st.n_blocks)
     changes = np.zeros(st.n_samples, dtype=np.int64)
     corr = np.empty(st.n_samples)
-    before = edges()
+    lam_all = np.empty(st.n_samples)
+    before, ln_before = edges(), log_norm()
     per = st.sample // st.block
     for k in range(st.n_samples):
         rec = sim.run(state, st.sample, stride=st.block, tangent=True)
@@ -80,12 +90,15 @@ def run_replica(section: Mapping, replica: int, log: Callable[[str], None] = lam
         before = after
         dr, dv = state.tangent_stored
         corr[k] = speed_lyapunov_correlation(state.velocities, dr, dv, mobile)
+        ln_after = log_norm()
+        lam_all[k] = (ln_after - ln_before) / (st.sample * float(section["physics"]["dt"]))
+        ln_before = ln_after
     dr, dv = state.tangent_stored
     du_mag = lyapunov_vector_magnitude(dr[:n], dv[:n])
     log(f"replica {replica}: N = {n}, {st.n_samples} samples, "
         f"{int((changes > 0).sum())} with network changes")  # fmt: skip
     return {
-        "lam": lam, "speed": speed, "changes": changes, "corr": corr,
+        "lam": lam, "speed": speed, "changes": changes, "corr": corr, "lam_all": lam_all,
         "positions": state.positions[:n].copy(), "du": du_mag / max(du_mag.max(), 1e-300),
         "v": np.hypot(*state.velocities[:n].T), "diameters": cell.diameters,
     }  # fmt: skip
@@ -112,6 +125,8 @@ def run_batch(section: Mapping, replicas, log: Callable[[str], None] = lambda m:
                             "before"),
         "speed_lyapunov_correlation": (sample, "corr", "1", "correlation of |δu_i| and |v_i| "
                                        "over the mobile disks"),
+        "lyapunov_all": (sample, "lam_all", "1/t0", "growth rate of the whole tangent vector "
+                         "(all mobile disks, rattlers included) over the sample"),
         "snapshot_positions": (rep + ("disk", "xy"), "positions", "d_s", "centres at the end"),
         "snapshot_du": (rep + ("disk",), "du", "1", "|δu_i| at the end over its largest"),
         "snapshot_speed": (rep + ("disk",), "v", "d_s/t0", "|v_i| at the end"),

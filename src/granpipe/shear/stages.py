@@ -89,8 +89,8 @@ def _fits_files(params: Mapping, paths: Sequence) -> dict[str, xr.Dataset]:
 
 
 def summary_stage(params: Mapping, fits_files: Sequence, out) -> Path:
-    """summary.csv: each point's rows (quantity ``<name>[phi=...]``) and
-    ``phi_lambda_zero``."""
+    """summary.csv: each point's rows (quantity ``<name>[phi=...]``),
+    ``phi_lambda_zero`` and ``phi_lambda_all_zero``."""
     from ..analysis.summary import results_rows, write_summary
     from .fits import phi_crossing
 
@@ -102,6 +102,9 @@ def summary_stage(params: Mapping, fits_files: Sequence, out) -> Path:
     phis = [float(ds.attrs["phi"]) for ds in fits.values()]
     means = [ds["lambda_replica_mean"].values for ds in fits.values()]
     rows.append(phi_crossing(phis, means, params).to_row("shear"))
+    means = [ds["lambda_all_replica_mean"].values for ds in fits.values()]
+    of = "the whole tangent vector's growth rate (rattlers included)"
+    rows.append(phi_crossing(phis, means, params, "phi_lambda_all_zero", of).to_row("shear"))
     path = write_summary(rows, out, merge=False)
     _log(f"wrote {len(rows)} rows to {path}")
     return path
