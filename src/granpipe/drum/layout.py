@@ -25,12 +25,16 @@ import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from types import MappingProxyType
 
-import yaml
-
-from ..config import MAX_SIMULATION_JOBS, check_memory, check_plan, fill_defaults, schema_dir
+from ..config import (
+    MAX_SIMULATION_JOBS,
+    check_memory,
+    check_plan,
+    fill_defaults,
+    read_schema,
+    schema_dir,
+)
 from ..errors import ConfigError
 from ..io import config_hash
 from .model import PAPER_PHYSICS, geometry, omega
@@ -284,7 +288,7 @@ def _schema(path: str, mtime: int):
     """The drum schema and its validator, read once per file version."""
     import jsonschema
 
-    schema = yaml.safe_load(Path(path).read_text())
+    schema = read_schema(path)
     return schema, jsonschema.Draft202012Validator(schema)
 
 
