@@ -1,9 +1,11 @@
 """Figures of the shear study (docs/shear.md, "Figures"): data in, Figure out.
 
-* :func:`fig1_lambda_vs_phi` — ⟨λ⟩ against φ with its intervals, and the rearrangement
-  rate (Ref. [20]'s chaotic-to-non-chaotic transition).
+* :func:`fig1_lambda_vs_phi` — ⟨λ⟩ (over disks with two contacts) and the maximal
+  exponent (the whole tangent vector) against φ with their intervals, and the
+  rearrangement rate (Ref. [20]'s chaotic-to-non-chaotic transition).
 * :func:`fig2_event_triggered` — λ̄ averaged over the events, each replica aligned on its
-  own, against t − t_event, one curve per φ, with the count of events.
+  own, against t − t_event, one curve per φ (and the whole tangent vector's rate), with
+  the count of events.
 * :func:`fig3_contrast` — the drum paper's contrast: the shear cell's event-triggered λ̄
   beside the drum's λ̄ aligned on each pile's own onset of sustained flow, same law, same
   analysis (the drum's fits file, when the scale runs the drum).
@@ -56,7 +58,8 @@ def fig1_lambda_vs_phi(fits: dict[str, xr.Dataset]) -> plt.Figure:
 
 def fig2_event_triggered(fits: dict[str, xr.Dataset], min_events: int = 100) -> plt.Figure:
     """λ̄ aligned on the events minus its level far from them (|τ| ≥ half the window), per
-    φ with at least ``min_events`` events, and the events behind each τ."""
+    φ with at least ``min_events`` events (dashed: the same of the whole tangent vector's
+    rate), and the events behind each τ."""
     fig, (a, b) = plt.subplots(2, 1, figsize=(6, 6), sharex=True,
                                gridspec_kw={"height_ratios": [3, 1]})  # fmt: skip
     for point, ds in fits.items():
@@ -67,11 +70,16 @@ def fig2_event_triggered(fits: dict[str, xr.Dataset], min_events: int = 100) -> 
         lead, top = _v(ds, "lead_time"), _v(ds, "lambda_peak_time")
         txt = f"{point}: " + (f"lead {lead:.2f} s, " if np.isfinite(lead) else "never > 0, ")
         (line,) = a.plot(tau, lb - base, label=txt + f"largest at {top:+.2f} s")
+        if "aligned_lambda_all_bar" in ds:  # the whole tangent vector's rate, dashed
+            ts, la = ds["tau_sample"].values, ds["aligned_lambda_all_bar"].values
+            far = np.nanmean(np.where(np.abs(ts) >= 0.5 * np.abs(ts).max(), la, np.nan))
+            a.plot(ts, la - far, ls="--", lw=0.9, color=line.get_color())
         b.plot(tau, ds["aligned_count"], color=line.get_color())
     a.axhline(0.0, color="0.5", lw=0.8)
     a.axvline(0.0, color="k", lw=0.8, ls=":")
     a.set(ylabel="λ̄ − its level far from events [1/t0]",
-          title=f"λ̄ aligned on each rearrangement (φ with ≥ {min_events} events)")  # fmt: skip
+          title=f"λ̄ aligned on each rearrangement (φ with ≥ {min_events} events)\n"
+          "solid: over disks with ≥ 2 contacts; dashed: whole tangent vector")  # fmt: skip
     a.legend(fontsize=7)
     b.set(xlabel="t − t_event [s]", ylabel="events")
     fig.tight_layout()

@@ -59,6 +59,61 @@ def _over_replicas(name, values, unit, method, cfg) -> FitResult:
     return res
 
 
+def _event_triggered(t, values, events, cfg, step, stem, of):
+    """``values`` (R, T) at times ``t`` [s] (step ``step``) of each replica aligned on each
+    of its own ``events``, pooled per replica: the rows ``event_lag``, ``lead_time``,
+    ``<stem>_peak_time``, ``<stem>_excess_before``/``_after`` (prefixed by ``stem_`` for
+    another quantity than λ), with bootstrap intervals over replicas; returns ``(rows,
+    tau, aligned mean, its moving average λ̄, events per τ)``."""
+    tau, M, C = align_on_many_events(t, values, events, float(cfg["aligned_before_s"]),
+                                     float(cfg["aligned_after_s"]))  # fmt: skip
+    n_ev = sum(len(e) for e in events)
+    q = window_half_width(float(cfg["moving_average_s"]), step)
+    hold = round(float(cfg["crossing_hold_s"]) / step)
+    mean, _, count = pooled_batch_mean(M, C)
+    keep = count >= float(cfg["aligned_min_fraction"]) * max(n_ev, 1)
+    search = (tau[keep][0], tau[keep][-1]) if keep.any() else (np.nan, np.nan)
+
+    def bar(m):
+        return moving_average(np.where(keep, m, np.nan), q)
+
+    w = float(cfg["moving_average_s"])
+    before, after, outer = (tau >= -w) & (tau < 0), (tau >= 0) & (tau < w), np.abs(tau) >= 2 * w
+
+    def lag_and_peak(m):  # (..., 4): λ̄'s lasting upward zero crossing, its maximum, and the
+        lb = bar(m)  # mean excess over the outer window just before and just after the event
+        has = np.isfinite(lb).any(-1)
+        top = np.nanargmax(np.where(np.isfinite(lb), lb, -np.inf), axis=-1)
+        peak = np.where(has, tau[top], np.nan)
+        base = np.nanmean(m[..., outer], -1)
+        ex = [np.nanmean(m[..., x], -1) - base for x in (before, after)]
+        return np.stack([first_crossing(tau, lb, search, +1, hold), peak, *ex], -1)
+
+    pre = "" if stem == "lambda" else f"{stem}_"
+    lag0, peak0, ex_before, ex_after = lag_and_peak(mean)
+    lag_res = FitResult(f"{pre}event_lag", float(lag0), math.nan, "s", n=n_ev,
+                        method=f"first lasting upward zero crossing of the moving average "
+                        f"(Eq. 2) of {of} averaged over the events, each replica aligned on "
+                        "each of its own, minus the event")  # fmt: skip
+    peak = FitResult(f"{stem}_peak_time", float(peak0), math.nan, "s", n=n_ev,
+                     method=f"time of the largest moving average of {of} averaged over the "
+                     "events, minus the event (negative: largest before the events)")  # fmt: skip
+    excess = [FitResult(f"{stem}_excess_{k}", float(v), math.nan, "1/t0", n=n_ev,
+                        method=f"mean of {of} averaged over the events within {w:g} s {k} "
+                        f"them, minus its mean {2 * w:g} s or more away from them")
+              for k, v in (("before", ex_before), ("after", ex_after))]  # fmt: skip
+    units = np.flatnonzero(C.max(axis=1) > 0)
+    if int(cfg["bootstrap_resamples"]) > 0 and units.size > 1:
+        boot = bootstrap_batches(M[units], C[units], lag_and_peak, **_boot_kw(cfg))
+        lag_res, peak = lag_res.with_ci(boot, 0), peak.with_ci(boot, 1)
+        excess = [x.with_ci(boot, k) for k, x in enumerate(excess, start=2)]
+    lead = FitResult(f"{pre}lead_time", -lag_res.value, math.nan, "s", ci_low=-lag_res.ci_high,
+                     ci_high=-lag_res.ci_low, ci_level=lag_res.ci_level, n=n_ev,
+                     n_resamples=lag_res.n_resamples, method=f"−{pre}event_lag: how long "
+                     f"before the events the moving average of {of} turns positive")  # fmt: skip
+    return [lag_res, lead, peak, *excess], tau, mean, bar(mean), count
+
+
 def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dataset]:
     """The point's fitted numbers and curves from its runs (``ds``: batches concatenated
     along ``replica``); ``params`` is the fits rule's subset."""
@@ -77,60 +132,20 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
     record = float(ds["time"].values[-1] + ds.attrs["block_s"] / 2)
     res.append(FitResult("event_rate", n_ev / (R * record), math.nan, "1/s", n=n_ev,
                          method="rearrangement events per replica and second"))  # fmt: skip
+    before, after = float(cfg["aligned_before_s"]), float(cfg["aligned_after_s"])
     t = ds["time"].values
-    tau, M, C = align_on_many_events(t, lam, events, float(cfg["aligned_before_s"]),
-                                     float(cfg["aligned_after_s"]))  # fmt: skip
-    _, Mv, _ = align_on_many_events(
-        t,
-        ds["global_speed"].values,
-        events,
-        float(cfg["aligned_before_s"]),
-        float(cfg["aligned_after_s"]),
-    )
-    q = window_half_width(float(cfg["moving_average_s"]), float(ds.attrs["block_s"]))
-    hold = round(float(cfg["crossing_hold_s"]) / float(ds.attrs["block_s"]))
-    mean, _, count = pooled_batch_mean(M, C)
-    mean_v, _, _ = pooled_batch_mean(Mv, C)
-    keep = count >= float(cfg["aligned_min_fraction"]) * max(n_ev, 1)
-    search = (tau[keep][0], tau[keep][-1]) if keep.any() else (np.nan, np.nan)
-
-    def bar(m):
-        return moving_average(np.where(keep, m, np.nan), q)
-
-    w = float(cfg["moving_average_s"])
-    before, after, outer = (tau >= -w) & (tau < 0), (tau >= 0) & (tau < w), np.abs(tau) >= 2 * w
-
-    def lag_and_peak(m):  # (..., 4): λ̄'s lasting upward zero crossing, its maximum, and λ's
-        lb = bar(m)  # mean excess over the outer window just before and just after the event
-        has = np.isfinite(lb).any(-1)
-        top = np.nanargmax(np.where(np.isfinite(lb), lb, -np.inf), axis=-1)
-        peak = np.where(has, tau[top], np.nan)
-        base = np.nanmean(m[..., outer], -1)
-        ex = [np.nanmean(m[..., x], -1) - base for x in (before, after)]
-        return np.stack([first_crossing(tau, lb, search, +1, hold), peak, *ex], -1)
-
-    lag0, peak0, ex_before, ex_after = lag_and_peak(mean)
-    lag_res = FitResult("event_lag", float(lag0), math.nan, "s", n=n_ev,
-                        method="first lasting upward zero crossing of λ̄ (Eq. 2) of λ averaged "
-                        "over the events, each replica aligned on each of its own, minus the "
-                        "event")  # fmt: skip
-    peak = FitResult("lambda_peak_time", float(peak0), math.nan, "s", n=n_ev,
-                     method="time of the largest λ̄ of λ averaged over the events, minus the "
-                     "event (negative: λ̄ is largest before the events)")  # fmt: skip
-    excess = [FitResult(f"lambda_excess_{k}", float(v), math.nan, "1/t0", n=n_ev,
-                        method=f"mean of λ averaged over the events within {w:g} s {k} them, "
-                        f"minus its mean {2 * w:g} s or more away from them")
-              for k, v in (("before", ex_before), ("after", ex_after))]  # fmt: skip
-    units = np.flatnonzero(C.max(axis=1) > 0)
-    if int(cfg["bootstrap_resamples"]) > 0 and units.size > 1:
-        boot = bootstrap_batches(M[units], C[units], lag_and_peak, **_boot_kw(cfg))
-        lag_res, peak = lag_res.with_ci(boot, 0), peak.with_ci(boot, 1)
-        excess = [x.with_ci(boot, k) for k, x in enumerate(excess, start=2)]
-    lead = FitResult("lead_time", -lag_res.value, math.nan, "s", ci_low=-lag_res.ci_high,
-                     ci_high=-lag_res.ci_low, ci_level=lag_res.ci_level, n=n_ev,
-                     n_resamples=lag_res.n_resamples, method="−event_lag: how long before the "
-                     "events λ̄ turns positive")  # fmt: skip
-    res += [lag_res, lead, peak, *excess]
+    block = float(ds.attrs["block_s"])
+    rows, tau, mean, lbar, count = _event_triggered(t, lam, events, cfg, block, "lambda", "λ")
+    res += rows
+    _, Mv, Cv = align_on_many_events(t, ds["global_speed"].values, events, before, after)
+    mean_v, _, _ = pooled_batch_mean(Mv, Cv)
+    # the same of the whole tangent vector's rate, at the samples' resolution
+    ts = ds["sample"].values - float(ds.attrs["sample_s"]) / 2.0
+    rows, tau_s, mean_all, lbar_all, count_all = _event_triggered(
+        ts, ds["lyapunov_all"].values, events, cfg, float(ds.attrs["sample_s"]), "lambda_all",
+        "the whole tangent vector's rate",
+    )  # fmt: skip
+    res += rows
     corr = ds["speed_lyapunov_correlation"].values
     near = np.zeros(corr.shape, dtype=bool)
     s = ds["sample"].values
@@ -154,12 +169,18 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
                                         "per replica"}),
             "aligned_lambda": ("tau", mean, {"units": "1/t0", "long_name": "λ averaged over "
                                "the events, each replica aligned on its own"}),
-            "aligned_lambda_bar": ("tau", bar(mean),
+            "aligned_lambda_bar": ("tau", lbar,
                                    {"units": "1/t0", "long_name": "moving average (Eq. 2) of "
                                     "the aligned λ, where enough events contribute"}),
             "aligned_speed": ("tau", mean_v, {"units": "d_s/t0", "long_name": "V averaged over "
                               "the events"}),
             "aligned_count": ("tau", count, {"units": "1", "long_name": "events contributing"}),
+            "aligned_lambda_all": ("tau_sample", mean_all, {"units": "1/t0", "long_name":
+                                   "the whole tangent vector's rate averaged over the events"}),
+            "aligned_lambda_all_bar": ("tau_sample", lbar_all, {"units": "1/t0", "long_name":
+                                       "its moving average (Eq. 2)"}),
+            "aligned_count_sample": ("tau_sample", count_all, {"units": "1", "long_name":
+                                     "events contributing"}),
             "snapshot_positions": (("disk", "xy"), ds["snapshot_positions"].values[0],
                                    ds["snapshot_positions"].attrs),
             "snapshot_du": ("disk", ds["snapshot_du"].values[0], ds["snapshot_du"].attrs),
@@ -168,6 +189,7 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
             "diameter": ("disk", ds["diameter"].values, ds["diameter"].attrs),
         },
         coords={"tau": ("tau", tau, {"units": "s", "long_name": label}),
+                "tau_sample": ("tau_sample", tau_s, {"units": "s", "long_name": label}),
                 "replica": ds["replica"]},
     )  # fmt: skip
     return res, curves
