@@ -61,10 +61,11 @@ def _over_replicas(name, values, unit, method, cfg) -> FitResult:
 
 def _event_triggered(t, values, events, cfg, step, stem, of):
     """``values`` (R, T) at times ``t`` [s] (step ``step``) of each replica aligned on each
-    of its own ``events``, pooled per replica: the rows ``event_lag``, ``lead_time``,
-    ``<stem>_peak_time``, ``<stem>_excess_before``/``_after`` (prefixed by ``stem_`` for
-    another quantity than λ), with bootstrap intervals over replicas; returns ``(rows,
-    tau, aligned mean, its moving average λ̄, events per τ)``."""
+    of its own ``events``, pooled per replica: the rows ``event_lag``, ``lead_time`` (for
+    another quantity than λ, ``stem="lambda_all"``: ``<stem>_event_lag``,
+    ``<stem>_lead_time``), ``<stem>_peak_time``, ``<stem>_excess_before``/``_after``, with
+    bootstrap intervals over replicas (``of`` names the quantity in their methods);
+    returns ``(rows, tau, aligned mean, its moving average λ̄, events per τ)``."""
     tau, M, C = align_on_many_events(t, values, events, float(cfg["aligned_before_s"]),
                                      float(cfg["aligned_after_s"]))  # fmt: skip
     n_ev = sum(len(e) for e in events)
