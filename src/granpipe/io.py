@@ -334,13 +334,16 @@ def expect_input(
     stage: str,
     point: str | None = None,
     config_hash: str | None = None,
+    variables: Sequence[str] = (),
     **want,
 ) -> None:
     """Check that the file ``path`` (its dataset or attributes ``ds``) is the input the
     stage was asked for: written by ``study``'s stage ``stage``, for ``point`` and from
     the config subset whose hash is ``config_hash`` (each as the stage derives it from its
     own ``--params``; ``None``: not checked), with the attributes ``want`` (compared as
-    text, so 0.6 and "0.6" agree).
+    text, so 0.6 and "0.6" agree) and the ``variables`` the stage reads (``ds`` a
+    dataset; a file an earlier granpipe wrote may lack one: the rule is named to recompute
+    it).
 
     Raises
     ------
@@ -373,6 +376,14 @@ def expect_input(
             f"{what} ({config_hash[:12]}): another point's file, or one computed before the "
             "physics changed"
         )
+    missing = [v for v in variables if v not in ds.variables] if variables else []
+    if missing:
+        raise RunFileError(
+            f"{path} holds no {', '.join(map(repr, missing))}: it was written by an earlier "
+            f"granpipe ({attrs.get('granpipe_version', 'unknown version')}) whose {study} "
+            f"{stage} stage did not record it; recompute it: snakemake --forcerun "
+            f"{study}_{stage} (or delete the file)"
+        )
 
 
 def _batch_of(path: Path) -> int | None:
@@ -389,6 +400,7 @@ def check_run_files(
     config_hash: str,
     point: str | None = None,
     stage: str = "runs",
+    variables: Sequence[str] = (),
     **want,
 ) -> list[dict]:
     """Check that run files are the ones a stage was asked for before it reduces them;
@@ -398,8 +410,8 @@ def check_run_files(
     (if given) from the config subset whose hash is ``config_hash`` (both as the stage
     derives them from its own ``--params``, never from another input); a file named
     ``batch_<b>.nc`` must hold batch ``b``; no replica index may appear twice across
-    the files; further attributes ``want`` as in :func:`expect_input`. One file open at
-    a time.
+    the files; further attributes ``want`` and the ``variables`` the stage reads as in
+    :func:`expect_input`. One file open at a time.
 
     Returns
     -------
@@ -416,9 +428,8 @@ def check_run_files(
         with open_input(p) as ds:
             attrs = dict(ds.attrs)
             replicas = [int(r) for r in ds["replica"].values] if "replica" in ds else []
-        expect_input(
-            attrs, p, study=study, stage=stage, point=point, config_hash=config_hash, **want
-        )
+            expect_input(ds, p, study=study, stage=stage, point=point, config_hash=config_hash,
+                         variables=variables, **want)  # fmt: skip
         named = _batch_of(p)
         batch = attrs.get("batch")
         if named is not None and batch is not None and int(batch) != named:

@@ -60,3 +60,28 @@ def test_summary_and_figures_from_every_point_and_only_those(two_points, tmp_pat
         summary_stage(layout.summary_params(cfg), [fits[0], copy], tmp_path / "s2.csv")
     with pytest.raises(RunFileError, match="no fits file"):
         summary_stage(layout.summary_params(cfg), fits[:1], tmp_path / "s3.csv")
+
+
+def test_files_an_earlier_granpipe_wrote_are_named_with_the_rule_to_rerun(two_points, tmp_path):
+    """A run file without ``lyapunov_all`` and a fits file without its replica means (as
+    granpipe wrote them before it recorded the whole tangent vector's rate) are refused by
+    the stages that read them, naming the file, the variable and the rule to force."""
+    from granpipe.io import read_dataset
+
+    cfg, root = two_points
+    a = layout.points(cfg)[0]
+    runs = []
+    for b in layout.batches(cfg):
+        ds = read_dataset(root / layout.run_file(a, b)).drop_vars("lyapunov_all")
+        runs.append(tmp_path / "runs" / f"batch_{b}.nc")
+        runs[-1].parent.mkdir(exist_ok=True)
+        ds.to_netcdf(runs[-1])
+    with pytest.raises(RunFileError, match=r"no 'lyapunov_all'.*--forcerun shear_runs"):
+        fits_stage(layout.fits_params(cfg, a), runs, tmp_path / "x.nc")
+    old = tmp_path / "fits" / f"{a}.nc"
+    old.parent.mkdir()
+    read_dataset(root / layout.fits_file(a)).drop_vars("lambda_all_replica_mean").to_netcdf(old)
+    params = {**layout.summary_params(cfg), "points": {a: layout.summary_params(cfg)["points"][a]}}
+    with pytest.raises(RunFileError, match=r"no 'lambda_all_replica_mean'.*--forcerun shear_fits"):
+        summary_stage(params, [old], tmp_path / "s.csv")
+    assert not (tmp_path / "x.nc").exists() and not (tmp_path / "s.csv").exists()

@@ -20,6 +20,12 @@ from ..io import RunFileError, check_run_files, expect_input, read_dataset, writ
 __all__ = ["runs_stage", "fits_stage", "summary_stage", "figures_stage"]
 
 
+# what the fits read of a run file, and the summary and figures of a fits file
+RUN_VARIABLES = ("local_lyapunov", "global_speed", "network_changes",
+                 "speed_lyapunov_correlation", "lyapunov_all", "snapshot_du")  # fmt: skip
+FITS_VARIABLES = ("lambda_replica_mean", "lambda_all_replica_mean", "aligned_lambda_bar")
+
+
 def _log(msg):
     print(f"[shear {time.strftime('%H:%M:%S')}] {msg}", file=sys.stderr, flush=True)
 
@@ -47,7 +53,8 @@ def fits_stage(params: Mapping, run_files: Sequence, out) -> Path:
 
     point, n = params["point"], int(params["n_replicas"])
     labels = check_run_files(run_files, study="shear", point=point,
-                             config_hash=params["runs_config_hash"])  # fmt: skip
+                             config_hash=params["runs_config_hash"],
+                             variables=RUN_VARIABLES)  # fmt: skip
     have = sorted(r for lab in labels for r in lab["replicas"])
     if have[:n] != list(range(n)):
         raise RunFileError(f"the run files of {point} hold replicas {have}, not 0 .. {n - 1}")
@@ -80,7 +87,8 @@ def _fits_files(params: Mapping, paths: Sequence) -> dict[str, xr.Dataset]:
             raise RunFileError(f"{p} holds the fits of {point}, not of {Path(p).stem}")
         if point in seen:
             raise RunFileError(f"point {point} appears twice")
-        expect_input(ds, p, study="shear", stage="fits", point=point, config_hash=want[point])
+        expect_input(ds, p, study="shear", stage="fits", point=point, config_hash=want[point],
+                     variables=FITS_VARIABLES)  # fmt: skip
         seen[point] = ds
     missing = [pt for pt in want if pt not in seen]
     if missing:
