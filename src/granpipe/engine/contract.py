@@ -178,7 +178,8 @@ def truncated_spring(k_t, inv_k_t, xi, u, damp, cap, dt):
     """The tangential spring with history truncated at Coulomb (Cundall & Strack 1979, as
     LAMMPS' ``gran/hooke/history``), shared by the laws with history: ``xi' = xi + u dt``,
     ``f_t = -k_t xi' - damp``; where ``|f_t| > cap`` (slip) ``f_t = cap sign(f_t)`` and
-    the spring is reset, ``xi' = -(f_t + damp) / k_t``. Returns ``(f_t, xi', slip)``."""
+    the spring is reset, ``xi' = -(f_t + damp) inv_k_t`` (``inv_k_t = 1/k_t``, or 0 for a
+    law that keeps no elastic shear). Returns ``(f_t, xi', slip)``."""
     xi_new = xi + u * dt
     f_t = -k_t * xi_new - damp
     slip = abs(f_t) > cap

@@ -240,8 +240,8 @@ def _tangent8(mode):
     2 (the end of a run) leaves ``tv = u``. Each sum comes as four lanes (lane ``c`` over
     the disks ``i = c mod 4``): ``(num0..3, den0..3, total0..3)``, zero in mode 0.
     ``spins`` is ``()`` or, for laws with spin, the rows ``(tw, tt, inv_i, radius)``: the
-    spin's perturbation is kicked the same way (``a = h (tt inv_i)``) and ``((a u)²)
-    mob_i`` of its half-kicked value ``u`` is added to ``q_i``.
+    spin's perturbation is kicked the same way (by ``h (tt inv_i)``) and ``(r_i w)² mob_i``
+    of its half-kicked value ``w`` (``r_i`` the radius) is added to ``q_i``.
     """
 
     def typer(typingctx, tr, tv, tf, im, mob, prev, contacts, h, dt, n, spins):
