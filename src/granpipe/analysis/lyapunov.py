@@ -16,15 +16,19 @@ import numpy as np
 __all__ = ["lyapunov_vector_magnitude", "speed_lyapunov_correlation"]
 
 
-def lyapunov_vector_magnitude(tangent_r: np.ndarray, tangent_v: np.ndarray) -> np.ndarray:
-    """|δu_i| = sqrt(|δr_i|² + |δv_i|²) per disk, reduced units.
+def lyapunov_vector_magnitude(
+    tangent_r: np.ndarray, tangent_v: np.ndarray, relative: bool = False
+) -> np.ndarray:
+    """|δu_i| = sqrt(|δr_i|² + |δv_i|²) per disk, reduced units (``relative``: over the
+    largest, the vector's scale being arbitrary).
 
     ``tangent_r`` (N, 2) [d_s] and ``tangent_v`` (N, 2) [d_s/t0]: the position and
     velocity parts of the Lyapunov (tangent) vector. Returns (N,) float.
     """
     dr = np.asarray(tangent_r, dtype=float)
     dv = np.asarray(tangent_v, dtype=float)
-    return np.sqrt(np.sum(dr * dr, axis=-1) + np.sum(dv * dv, axis=-1))
+    du = np.sqrt(np.sum(dr * dr, axis=-1) + np.sum(dv * dv, axis=-1))
+    return du / max(float(du.max(initial=0.0)), 1e-300) if relative else du
 
 
 def speed_lyapunov_correlation(

@@ -170,8 +170,7 @@ def _snapshot(model, state, label, description):
     n = model.n_mobile
     du = np.full(n, np.nan)
     if state.has_tangent:
-        du = lyapunov_vector_magnitude(*(x[:n] for x in state.tangent_stored))
-        du = du / max(float(du.max()), 1e-300)
+        du = lyapunov_vector_magnitude(*(x[:n] for x in state.tangent_stored), relative=True)
     return Snapshot(
         positions=state.positions[:n].copy(),
         velocities=state.velocities[:n].copy(),

@@ -70,10 +70,9 @@ def fig2_event_triggered(fits: dict[str, xr.Dataset], min_events: int = 100) -> 
         lead, top = _v(ds, "lead_time"), _v(ds, "lambda_peak_time")
         txt = f"{point}: " + (f"lead {lead:.2f} s, " if np.isfinite(lead) else "never > 0, ")
         (line,) = a.plot(tau, lb - base, label=txt + f"largest at {top:+.2f} s")
-        if "aligned_lambda_all_bar" in ds:  # the whole tangent vector's rate, dashed
-            ts, la = ds["tau_sample"].values, ds["aligned_lambda_all_bar"].values
-            far = np.nanmean(np.where(np.abs(ts) >= 0.5 * np.abs(ts).max(), la, np.nan))
-            a.plot(ts, la - far, ls="--", lw=0.9, color=line.get_color())
+        ts, la = ds["tau_sample"].values, ds["aligned_lambda_all_bar"].values  # dashed
+        far = np.nanmean(np.where(np.abs(ts) >= 0.5 * np.abs(ts).max(), la, np.nan))
+        a.plot(ts, la - far, ls="--", lw=0.9, color=line.get_color())
         b.plot(tau, ds["aligned_count"], color=line.get_color())
     a.axhline(0.0, color="0.5", lw=0.8)
     a.axvline(0.0, color="k", lw=0.8, ls=":")

@@ -20,10 +20,16 @@ from ..engine import DrumLaw, Simulation, WallDisks
 __all__ = ["ShearCell", "ring", "n_disks"]
 
 
+def ring_radius(n: int, d_wall: float) -> float:
+    """Circumradius R = d_w / (2 sin(π/n)) [d_s] of ``n`` touching wall disks of diameter
+    ``d_wall`` on a regular n-gon."""
+    return d_wall / (2.0 * math.sin(math.pi / n))
+
+
 def ring(n: int, d_wall: float) -> tuple[np.ndarray, float]:
     """Centres (n, 2) [d_s] of ``n`` touching wall disks of diameter ``d_wall`` on a regular
-    n-gon about the origin, and its circumradius R = d_w / (2 sin(π/n)) [d_s]."""
-    radius = d_wall / (2.0 * math.sin(math.pi / n))
+    n-gon about the origin, and its circumradius (:func:`ring_radius`) [d_s]."""
+    radius = ring_radius(n, d_wall)
     th = 2.0 * np.pi * np.arange(n) / n
     return radius * np.column_stack([np.cos(th), np.sin(th)]), radius
 
@@ -31,7 +37,7 @@ def ring(n: int, d_wall: float) -> tuple[np.ndarray, float]:
 def annulus(physics: Mapping) -> tuple[float, float]:
     """(r_in, r_out) [d_s]: the rings' inner envelopes, R_in + d_w/2 and R_out − d_w/2."""
     dw = float(physics["d_wall"])
-    r_in, r_out = (dw / (2.0 * math.sin(math.pi / int(physics[k]))) for k in ("n_inner", "n_outer"))
+    r_in, r_out = (ring_radius(int(physics[k]), dw) for k in ("n_inner", "n_outer"))
     return r_in + dw / 2.0, r_out - dw / 2.0
 
 

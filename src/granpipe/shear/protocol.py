@@ -94,12 +94,12 @@ def run_replica(section: Mapping, replica: int, log: Callable[[str], None] = lam
         lam_all[k] = (ln_after - ln_before) / (st.sample * float(section["physics"]["dt"]))
         ln_before = ln_after
     dr, dv = state.tangent_stored
-    du_mag = lyapunov_vector_magnitude(dr[:n], dv[:n])
+    du = lyapunov_vector_magnitude(dr[:n], dv[:n], relative=True)
     log(f"replica {replica}: N = {n}, {st.n_samples} samples, "
         f"{int((changes > 0).sum())} with network changes")  # fmt: skip
     return {
         "lam": lam, "speed": speed, "changes": changes, "corr": corr, "lam_all": lam_all,
-        "positions": state.positions[:n].copy(), "du": du_mag / max(du_mag.max(), 1e-300),
+        "positions": state.positions[:n].copy(), "du": du,
         "v": np.hypot(*state.velocities[:n].T), "diameters": cell.diameters,
     }  # fmt: skip
 

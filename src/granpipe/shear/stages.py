@@ -20,10 +20,14 @@ from ..io import RunFileError, check_run_files, expect_input, read_dataset, writ
 __all__ = ["runs_stage", "fits_stage", "summary_stage", "figures_stage"]
 
 
-# what the fits read of a run file, and the summary and figures of a fits file
+# what the fits read of a run file, and the summary and figures of a fits file (a file an
+# earlier granpipe wrote may lack some: refused naming the rule to force)
 RUN_VARIABLES = ("local_lyapunov", "global_speed", "network_changes",
-                 "speed_lyapunov_correlation", "lyapunov_all", "snapshot_du")  # fmt: skip
-FITS_VARIABLES = ("lambda_replica_mean", "lambda_all_replica_mean", "aligned_lambda_bar")
+                 "speed_lyapunov_correlation", "lyapunov_all", "snapshot_positions",
+                 "snapshot_du", "snapshot_speed", "diameter")  # fmt: skip
+FITS_VARIABLES = ("lambda_replica_mean", "lambda_all_replica_mean", "aligned_lambda_bar",
+                  "aligned_count", "aligned_lambda_all_bar", "tau_sample", "event_lag",
+                  "snapshot_du")  # fmt: skip
 
 
 def _log(msg):
