@@ -56,6 +56,11 @@ def fig1_lambda_vs_phi(fits: dict[str, xr.Dataset]) -> plt.Figure:
     return fig
 
 
+def _minus_far(tau, y):
+    """``y(tau)`` minus its mean where ``|tau|`` is at least half the window's reach."""
+    return y - np.nanmean(np.where(np.abs(tau) >= 0.5 * np.abs(tau).max(), y, np.nan))
+
+
 def fig2_event_triggered(fits: dict[str, xr.Dataset], min_events: int = 100) -> plt.Figure:
     """λ̄ aligned on the events minus its level far from them (|τ| ≥ half the window), per
     φ with at least ``min_events`` events (dashed: the same of the whole tangent vector's
@@ -66,13 +71,12 @@ def fig2_event_triggered(fits: dict[str, xr.Dataset], min_events: int = 100) -> 
         tau, lb = ds["tau"].values, ds["aligned_lambda_bar"].values
         if int(ds["event_lag"].attrs.get("n", 0)) < min_events:
             continue
-        base = np.nanmean(np.where(np.abs(tau) >= 0.5 * np.abs(tau).max(), lb, np.nan))
         lead, top = _v(ds, "lead_time"), _v(ds, "lambda_peak_time")
         txt = f"{point}: " + (f"lead {lead:.2f} s, " if np.isfinite(lead) else "never > 0, ")
-        (line,) = a.plot(tau, lb - base, label=txt + f"largest at {top:+.2f} s")
-        ts, la = ds["tau_sample"].values, ds["aligned_lambda_all_bar"].values  # dashed
-        far = np.nanmean(np.where(np.abs(ts) >= 0.5 * np.abs(ts).max(), la, np.nan))
-        a.plot(ts, la - far, ls="--", lw=0.9, color=line.get_color())
+        (line,) = a.plot(tau, _minus_far(tau, lb), label=txt + f"largest at {top:+.2f} s")
+        ts = ds["tau_sample"].values
+        a.plot(ts, _minus_far(ts, ds["aligned_lambda_all_bar"].values), ls="--", lw=0.9,
+               color=line.get_color())  # fmt: skip
         b.plot(tau, ds["aligned_count"], color=line.get_color())
     a.axhline(0.0, color="0.5", lw=0.8)
     a.axvline(0.0, color="k", lw=0.8, ls=":")
