@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from granpipe.shear.fits import event_times, phi_crossing, point_fits
+from granpipe.shear.fits import TABLE_KEYS, event_times, point_fits, transitions
+from granpipe.shear.measures import JAMMING
 from tests.shear.conftest import shear_section
 
 BLOCK, SAMPLE, RECORD = 0.004, 0.02, 12.0
@@ -42,6 +43,13 @@ def synthetic_runs(lead, n_rep=6, seed=0, bump=None):
             "snapshot_du": (("replica", "disk"), np.ones((n_rep, n))),
             "snapshot_speed": (("replica", "disk"), np.ones((n_rep, n))),
             "diameter": (("disk",), np.ones(n)),
+            "disk_du": (("replica", "sample", "disk"), rng.random((n_rep, s.size, n))),
+            "disk_speed": (("replica", "sample", "disk"), rng.random((n_rep, s.size, n))),
+            "disk_changes": (("replica", "sample", "disk"), np.zeros((n_rep, s.size, n), int)),
+            **{
+                f"jamming_{k}": (("replica", "sample"), 1.0 + rng.random((n_rep, s.size)))
+                for k in JAMMING
+            },
         },
         coords={"replica": np.arange(n_rep), "time": t, "sample": s},
         attrs={"block_s": BLOCK, "sample_s": SAMPLE},
@@ -91,19 +99,48 @@ def test_lead_time_of_a_known_step_is_recovered(lead):
     assert abs(r["lambda_all_mean"].value - r["lambda_mean"].value) > 0.05
 
 
-def test_zero_crossing_in_phi_is_interpolated_between_points():
+def _tables(phis, rng, lam_all, z, pressure, n=16):
+    """Per-replica means at each point: the given means plus small noise."""
+    out = []
+    for k, _ in enumerate(phis):
+        t = {key: 1.0 + 0.01 * rng.standard_normal(n) for key in TABLE_KEYS}
+        t["lambda"] = -0.1 + 0.01 * rng.standard_normal(n)
+        t["lambda_all"] = lam_all[k] + 0.01 * rng.standard_normal(n)
+        t["z_frictionless"] = z[k] + 0.01 * rng.standard_normal(n)
+        t["pressure"] = pressure[k] * np.exp(0.02 * rng.standard_normal(n))
+        out.append(t)
+    return out
+
+
+def test_the_transition_and_the_jamming_points_of_known_means():
     rng = np.random.default_rng(1)
-    phis = [0.80, 0.82, 0.84, 0.86]
-    means = [m + 0.01 * rng.standard_normal(16) for m in (-0.2, -0.1, 0.1, 0.2)]
+    phis = np.array([0.78, 0.80, 0.82, 0.84, 0.86, 0.88, 0.90])
+    lam_all = 0.5 - 5.0 * (phis - 0.78)  # crosses zero at 0.88
+    z = 3.0 + 25.0 * (phis - 0.80)  # reaches 4 at 0.84
+    # ln P: steep below 0.83, shallow above (a break at 0.83)
+    pressure = np.exp(np.where(phis < 0.83, 200 * (phis - 0.83), 10 * (phis - 0.83)))
     cfg = shear_section()["fits"]
-    res = phi_crossing(phis, means, cfg)
-    exact = 0.82 + 0.02 * (-np.mean(means[1])) / (np.mean(means[2]) - np.mean(means[1]))
-    assert res.value == pytest.approx(exact, rel=1e-12)
-    assert abs(res.value - 0.83) < 0.001
-    assert res.ci_low < res.value < res.ci_high and res.ci_high - res.ci_low < 0.005
-    # no crossing, or a single point: NaN
-    assert np.isnan(phi_crossing(phis, [m - 1.0 for m in means], cfg).value)
-    assert np.isnan(phi_crossing(phis[:1], means[:1], cfg).value)
+    rows = {r.quantity: r for r in transitions(phis, _tables(phis, rng, lam_all, z, pressure),
+                                               cfg)}  # fmt: skip
+    star = rows["phi_lambda_all_zero"]
+    assert star.value == pytest.approx(0.88, abs=0.001)
+    assert star.ci_low < 0.88 < star.ci_high and star.ci_high - star.ci_low < 0.005
+    assert rows["phi_J_z_frictionless"].value == pytest.approx(0.84, abs=0.001)
+    assert rows["phi_J_pressure"].value == pytest.approx(0.83, abs=0.002)
+    pj = rows["phi_J_pressure"]
+    assert 0.828 < pj.ci_low <= pj.value <= pj.ci_high < 0.832
+    diff = rows["phi_star_minus_phi_J_pressure"]
+    assert diff.value == pytest.approx(0.05, abs=0.002) and diff.ci_low > 0.04
+    assert rows["hexatic_at_phi_star"].value == pytest.approx(1.0, abs=0.01)
+    assert np.isnan(rows["phi_lambda_zero"].value)  # λ over S keeps its sign
+    assert np.isnan(rows["phi_J_z_frictional"].value)  # z_frictional stays near 1 < 3
+    # a variant's rows carry its name
+    names = [r.quantity for r in transitions(phis, _tables(phis, rng, lam_all, z, pressure),
+                                             cfg, "[wide]")]  # fmt: skip
+    assert names[1] == "phi_lambda_all_zero[wide]"
+    # a single point: every crossing empty
+    one = transitions(phis[:1], _tables(phis[:1], rng, lam_all, z, pressure), cfg)
+    assert all(np.isnan(r.value) for r in one)
 
 
 def test_a_bump_of_lambda_before_the_events_is_timed_though_it_never_turns_positive():
@@ -123,3 +160,46 @@ def test_a_bump_of_lambda_before_the_events_is_timed_though_it_never_turns_posit
     for key, want in (("before", f[tau < 0].mean()), ("after", f[tau >= 0].mean())):
         x = r[f"lambda_excess_{key}"]
         assert x.value == pytest.approx(want, abs=0.01) and x.ci_low <= want <= x.ci_high
+
+
+def test_a_vector_that_marks_the_rearranging_disks_predicts_when_and_where():
+    """The whole vector's rate raised over the 0.2 s before each event predicts when (area
+    near 1, interval above one half; the speed, flat, gives one half); the disks whose
+    edges change at each event hold the largest |δu_i| one sample before it: found at
+    precision 1 and area 1, while the random speeds give their share."""
+    ds, _ = synthetic_runs(0.0)
+    rng = np.random.default_rng(5)
+    n_rep, S, n = ds["disk_du"].shape
+    lam_all = 0.01 * rng.standard_normal((n_rep, S))
+    du = rng.random((n_rep, S, n)) * 0.5
+    changes = np.zeros((n_rep, S, n), dtype=np.int64)
+    for r in range(n_rep):
+        for e in np.flatnonzero(ds["network_changes"].values[r] >= 5):
+            lam_all[r, e - 10 : e] += 1.0  # the 0.2 s before the event's sample
+            movers = rng.choice(n, 2, replace=False)
+            changes[r, e, movers] = 3
+            du[r, e - 1, movers] = 0.9  # the largest one sample before
+    ds["lyapunov_all"] = (("replica", "sample"), lam_all)
+    ds["disk_du"] = (("replica", "sample", "disk"), du)
+    ds["disk_changes"] = (("replica", "sample", "disk"), changes)
+    res, curves = point_fits(ds, params())
+    r = {x.quantity: x for x in res}
+    when = r["when_auc_lambda_all"]
+    assert when.value > 0.9 and when.ci_low > 0.5
+    assert r["when_auc_speed"].value == pytest.approx(0.5)  # a constant: all tied
+    assert r["when_positives"].value > 0
+    assert r["where_precision_du"].value == 1.0 and r["where_auc_du"].value == 1.0
+    assert r["where_precision_random"].value == pytest.approx(2 / n)
+    assert r["where_precision_speed"].value < 0.9
+    assert r["where_event_size"].value == 2.0
+    roc = curves["when_roc_lambda_all"].values
+    assert roc[0] >= 0 and roc[-1] == 1.0 and np.all(np.diff(roc) >= 0)
+
+
+def test_noise_predicts_nothing():
+    ds, _ = synthetic_runs(0.0, n_rep=12)
+    rng = np.random.default_rng(6)
+    ds["lyapunov_all"] = (("replica", "sample"), rng.standard_normal(ds["lyapunov_all"].shape))
+    res, _ = point_fits(ds, params())
+    when = {x.quantity: x for x in res}["when_auc_lambda_all"]
+    assert when.ci_low < 0.5 < when.ci_high

@@ -9,9 +9,15 @@ import pytest
 
 from granpipe.analysis.lyapunov import lyapunov_vector_magnitude, speed_lyapunov_correlation
 from granpipe.shear.measures import (
+    bulk_hexatic_order,
+    contact_number,
+    contact_pairs,
+    edge_change_counts,
+    elastic_measures,
     neighbour_edges,
     network_changes,
     rearrangement_events,
+    stress_release_events,
 )
 
 R_IN, R_OUT = 5.0, 11.0  # the annulus' walls [d_s]
@@ -179,3 +185,104 @@ def test_speed_lyapunov_correlation_on_synthetic_fields():
     two[:2] = True
     assert math.isnan(speed_lyapunov_correlation(v, 2 * v, dv, two))
     assert math.isnan(speed_lyapunov_correlation(v, np.ones_like(v), zero, mobile))
+
+
+# ------------------------------------------------------------- jamming measures
+def _hexagon(spacing=0.98):
+    """A disk and its six neighbours at ``spacing`` (radii 0.5: all seven overlap)."""
+    th = np.pi / 3 * np.arange(6)
+    return np.vstack([[0, 0], spacing * np.column_stack([np.cos(th), np.sin(th)])])
+
+
+def test_contact_number_and_rattlers_of_a_constructed_packing():
+    hexa = _hexagon() + [0.0, 8.0]
+    ring = hexa[1]  # the neighbour at 0 degrees
+    lone = [-8.0, 0.0]  # no contact
+    single = ring + [0.98, 0.0]  # touches that neighbour only
+    pos, radii, mobile = _with_walls(np.vstack([hexa, lone, single]), np.full(9, 0.5))
+    c = contact_pairs(pos, radii, mobile)
+    assert len(c.i) == 12 + 1  # six spokes, six rim contacts, the single one
+    assert np.allclose(c.overlap, 0.02)
+    z, rattler = contact_number(c, mobile, 3)
+    assert np.flatnonzero(rattler).tolist() == [7, 8]
+    assert z == pytest.approx((6 + 6 * 3) / 7)
+    z2, rattler2 = contact_number(c, mobile, 2)  # the frictional reading
+    assert np.flatnonzero(rattler2).tolist() == [7, 8]
+    # removal is iterative: a disk held by a rattler only is not held
+    chain = np.vstack([hexa, single, single + [0.98, 0.0]])
+    pos, radii, mobile = _with_walls(chain, np.full(9, 0.5))
+    z, rattler = contact_number(contact_pairs(pos, radii, mobile), mobile, 2)
+    assert np.flatnonzero(rattler).tolist() == [7, 8]
+    # nothing held: z = 0
+    apart = np.array([[7.0, 0.0], [0.0, 8.0]])
+    pos, radii, mobile = _with_walls(apart, np.full(2, 0.5))
+    assert contact_number(contact_pairs(pos, radii, mobile), mobile, 3)[0] == 0.0
+
+
+def test_wall_contacts_count_and_walls_never_touch_each_other():
+    ring_r = R_OUT + 0.5  # the outer ring's centres (radius 0.5)
+    disk = np.array([[ring_r - 0.98, 0.0]])  # pressed on the wall disk at angle 0
+    pos, radii, mobile = _with_walls(disk, np.full(1, 0.5))
+    c = contact_pairs(pos, radii, mobile)
+    assert len(c.i) == 1 and c.i[0] == 0 and not mobile[c.j[0]]
+    assert np.allclose(pos[c.j[0]], [ring_r, 0.0])
+
+
+def test_elastic_measures_of_one_pressed_disk():
+    k_n, delta = 500.0, 0.02
+    ring_r = R_OUT + 0.5
+    pos, radii, mobile = _with_walls(np.array([[ring_r - 1 + delta, 0.0]]), np.full(1, 0.5))
+    n_in = int(2 * math.pi * (R_IN - 0.5))
+    inner = np.r_[False, np.arange(len(pos) - 1) < n_in]
+    outer = ~mobile & ~inner
+    el = elastic_measures(contact_pairs(pos, radii, mobile), pos, k_n, inner, outer, R_OUT)
+    assert el["energy"] == pytest.approx(0.5 * k_n * delta**2)
+    assert el["pressure"] == pytest.approx(k_n * delta / (2 * math.pi * R_OUT))
+    assert el["torque"] == 0.0 and el["overlap"] == pytest.approx(delta)
+    # a disk pressed on an inner wall disk at (R, 0) from the direction at angle a to
+    # the radial one pushes it along -u: torque about the centre -f R sin(a)
+    big_r, a = 4.5, math.radians(60)
+    u = np.array([math.cos(a), math.sin(a)])
+    pos = np.array([[big_r, 0.0] + (1 - delta) * u, [big_r, 0.0], [-R_OUT - 0.5, 0.0]])
+    mobile = np.array([True, False, False])
+    inner, outer = np.array([False, True, False]), np.array([False, False, True])
+    el = elastic_measures(contact_pairs(pos, np.full(3, 0.5), mobile), pos, k_n, inner, outer,
+                          R_OUT)  # fmt: skip
+    assert el["torque"] == pytest.approx(-k_n * delta * big_r * math.sin(a))
+    assert el["pressure"] == 0.0
+
+
+def test_hexatic_order_of_a_crystal_and_of_random_points():
+    a = 1.0
+    i, j = np.meshgrid(np.arange(-14, 15), np.arange(-14, 15))
+    lattice = np.column_stack([a * (i + 0.5 * j).ravel(), a * math.sqrt(3) / 2 * j.ravel()])
+    assert bulk_hexatic_order(lattice, 2.0, 10.0, 1.0) == pytest.approx(1.0, abs=1e-6)
+    rng = np.random.default_rng(0)
+    r = np.sqrt(rng.uniform(2.0**2, 10.0**2, 900))
+    th = rng.uniform(0, 2 * math.pi, 900)
+    random = np.column_stack([r * np.cos(th), r * np.sin(th)])
+    assert bulk_hexatic_order(random, 2.0, 10.0, 1.0) < 0.45
+    assert math.isnan(bulk_hexatic_order(random, 2.0, 3.0, 1.0))  # no bulk
+
+
+def test_stress_release_detector_finds_a_constructed_energy_drop():
+    rng = np.random.default_rng(1)
+    energy = 10.0 + 0.01 * rng.standard_normal(200) + np.linspace(0, 2, 200)  # loading
+    energy[120:] -= 3.0  # a release of 30 % between samples 119 and 120
+    assert stress_release_events(energy, 0.1, 5).tolist() == [120]
+    energy[60:] -= 3.0  # and one at 60
+    assert stress_release_events(energy, 0.1, 5).tolist() == [60, 120]
+    assert stress_release_events(energy, 0.5, 5).size == 0  # smaller than half the median
+    with pytest.raises(ValueError, match="positive"):
+        stress_release_events(energy, 0.0, 5)
+
+
+def test_edge_change_counts_of_a_t1_swap():
+    a = np.array([[0, 0.5], [0, -0.5], [-0.9, 0], [0.9, 0]])
+    b = np.array([[0, 0.9], [0, -0.9], [-0.5, 0], [0.5, 0]])
+    pos_a, radii, mobile = _with_walls(a, np.full(4, 0.5), r_in=5.0, r_out=7.0)
+    pos_b = _with_walls(b, np.full(4, 0.5), r_in=5.0, r_out=7.0)[0]
+    n = len(pos_a)
+    counts = edge_change_counts(neighbour_edges(pos_a, radii, mobile),
+                                neighbour_edges(pos_b, radii, mobile), n)  # fmt: skip
+    assert counts[:4].tolist() == [1, 1, 1, 1] and counts[4:].sum() == 0

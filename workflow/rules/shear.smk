@@ -5,8 +5,10 @@
 # (granpipe.shear.layout), so an edit reruns what it touches: physics, preparation,
 # protocol, events.edge_cutoff or batch_size -> the runs; the detector's thresholds and
 # fits -> fits onwards; figures -> figures. n_replicas only adds batches; a new phi only
-# adds its point. The wildcard holds the number alone (a value with "=" or "," would break
-# the job specifications SLURM jobs carry).
+# adds its point. A variant's points sit in a folder of its name ("wide/phi=0.82"): the
+# group wildcard is that folder or empty (the base section). The phi wildcard holds the
+# number alone (a value with "=" or "," would break the job specifications SLURM jobs
+# carry).
 
 from granpipe.shear import layout as shear_layout
 
@@ -18,20 +20,26 @@ SHEAR_DRUM = [out("drum", drum_layout.fits_file(DRUM_REF))] if SHEAR_ON and enab
 
 
 wildcard_constraints:
+    shear_group=r"(|[A-Za-z][A-Za-z0-9_]*/)",
     shear_phi=r"[0-9.e+-]+",
     shear_batch=r"\d{4}",
+
+
+def shear_point(w):
+    """The point a job's wildcards name (``wide/phi=0.82`` or ``phi=0.82``)."""
+    return shear_layout.point_name(w.shear_phi, w.shear_group.rstrip("/"))
 
 
 rule shear_runs:
     """One batch of replicas at one packing fraction: preparation and record."""
     output:
-        out("shear", "runs", "phi={shear_phi}", "batch_{shear_batch}.nc"),
+        out("shear", "runs", "{shear_group}phi={shear_phi}", "batch_{shear_batch}.nc"),
     params:
-        json=lambda w: as_json(shear_layout.runs_params(SHEAR, shear_layout.point_name(w.shear_phi))),
+        json=lambda w: as_json(shear_layout.runs_params(SHEAR, shear_point(w))),
     conda:
         "../envs/granpipe.yaml"
     log:
-        log_path("shear", "runs", "phi={shear_phi}", "batch_{shear_batch}.log"),
+        log_path("shear", "runs", "{shear_group}phi={shear_phi}", "batch_{shear_batch}.log"),
     threads: 1
     resources:
         runtime=lambda w: int(5 + SHEAR["ensemble"]["batch_size"] * SHEAR["resources"]["replica_minutes"]),
@@ -42,17 +50,18 @@ rule shear_runs:
 
 
 rule shear_fits:
-    """A point's ⟨λ⟩, rearrangements, event-triggered λ̄ and lead time, correlations."""
+    """A point's ⟨λ⟩, rearrangements, event-triggered λ̄ and lead time, correlations, the
+    jamming measures, and the predictions of when and where the packing rearranges."""
     input:
-        lambda w: [out("shear", shear_layout.run_file(shear_layout.point_name(w.shear_phi), b)) for b in SHEAR_BATCHES],
+        lambda w: [out("shear", shear_layout.run_file(shear_point(w), b)) for b in SHEAR_BATCHES],
     output:
-        out("shear", "fits", "phi={shear_phi}.nc"),
+        out("shear", "fits", "{shear_group}phi={shear_phi}.nc"),
     params:
-        json=lambda w: as_json(shear_layout.fits_params(SHEAR, shear_layout.point_name(w.shear_phi))),
+        json=lambda w: as_json(shear_layout.fits_params(SHEAR, shear_point(w))),
     conda:
         "../envs/granpipe.yaml"
     log:
-        log_path("shear", "fits", "phi={shear_phi}.log"),
+        log_path("shear", "fits", "{shear_group}phi={shear_phi}.log"),
     threads: 1
     resources:
         runtime=10,
@@ -62,7 +71,7 @@ rule shear_fits:
 
 
 rule shear_summary:
-    """Every point's rows and the zero crossing of ⟨λ⟩ in φ."""
+    """Every point's rows, and each variant's transition and jamming point across φ."""
     input:
         [out("shear", shear_layout.fits_file(p)) for p in SHEAR_POINTS],
     output:
@@ -83,7 +92,7 @@ rule shear_summary:
 
 
 rule shear_figures:
-    """Figs. 1-4; the contrast figure with the drum's aligned λ̄ when the scale runs the drum."""
+    """Figs. 1-7; the contrast figure with the drum's aligned λ̄ when the scale runs the drum."""
     input:
         fits=[out("shear", shear_layout.fits_file(p)) for p in SHEAR_POINTS],
         drum=SHEAR_DRUM,

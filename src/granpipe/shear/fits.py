@@ -16,29 +16,70 @@ replica's samples, all, near events or elsewhere, then over replicas); across φ
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import warnings
 from collections.abc import Mapping
 
 import numpy as np
 import xarray as xr
 
-from ..analysis.bootstrap import FitResult, bootstrap_batches, bootstrap_replicas, first_crossing
+from ..analysis.bootstrap import (
+    BootstrapResult,
+    FitResult,
+    bootstrap_batches,
+    bootstrap_replicas,
+    first_crossing,
+)
 from ..analysis.ensemble import pooled_batch_mean
 from ..analysis.events import align_on_many_events
+from ..analysis.prediction import (
+    bootstrap_auc,
+    event_follows,
+    precision_at_size,
+    roc_auc,
+    roc_curve,
+    trailing_mean,
+)
+from ..analysis.regression import segmented_fit
 from ..analysis.smoothing import moving_average, window_half_width
-from .measures import rearrangement_events
+from .measures import JAMMING, rearrangement_events, stress_release_events
 
-__all__ = ["event_times", "point_fits", "phi_crossing"]
+__all__ = ["event_samples", "event_times", "point_fits", "transitions", "TRANSITIONS"]
 
 
-def event_times(ds: xr.Dataset, events: Mapping) -> list[np.ndarray]:
-    """Per replica, the times [s] of its rearrangement events: the middle of the sample
-    interval in which a burst of at least ``min_changes`` edges starts after ``quiet_s``."""
+def _active(ds: xr.Dataset, events: Mapping, detector: str) -> np.ndarray:
+    """(R, S) bool: the samples in which the detector fires (before the quiet spell is
+    asked for): ``network`` — at least ``min_changes`` edges changed; ``energy`` and
+    ``torque`` — the normal springs' energy, or the magnitude of their torque on the
+    inner ring, fell by at least ``release_drop`` times its median over the record."""
+    if detector == "network":
+        return ds["network_changes"].values >= int(events["min_changes"])
+    x = ds["jamming_energy"].values if detector == "energy" else -ds["jamming_torque"].values
+    fall = np.concatenate([np.zeros((len(x), 1)), x[:, :-1] - x[:, 1:]], axis=1)
+    return (fall > 0) & (fall >= float(events["release_drop"]) * np.median(x, 1, keepdims=True))
+
+
+def event_samples(ds: xr.Dataset, events: Mapping, detector: str | None = None) -> list:
+    """Per replica, the sample indices (K,) int64 of its events under ``detector``
+    (default ``events["detector"]``): a burst of network changes
+    (:func:`~granpipe.shear.measures.rearrangement_events`) or a stress release
+    (:func:`~granpipe.shear.measures.stress_release_events`), after ``quiet_s``."""
+    detector = events["detector"] if detector is None else detector
+    quiet = round(float(events["quiet_s"]) / float(ds.attrs["sample_s"]))
+    if detector == "network":
+        return [rearrangement_events(c, int(events["min_changes"]), quiet)
+                for c in ds["network_changes"].values]  # fmt: skip
+    x = ds["jamming_energy"].values if detector == "energy" else -ds["jamming_torque"].values
+    return [stress_release_events(y, float(events["release_drop"]), quiet) for y in x]
+
+
+def event_times(ds: xr.Dataset, events: Mapping, detector: str | None = None) -> list:
+    """Per replica, the times [s] of its events (:func:`event_samples`): the middle of
+    the sample interval in which each starts."""
     dt = float(ds.attrs["sample_s"])
-    quiet = round(float(events["quiet_s"]) / dt)
     t = ds["sample"].values - dt / 2.0
-    ch = ds["network_changes"].values
-    return [t[rearrangement_events(c, int(events["min_changes"]), quiet)] for c in ch]
+    return [t[k] for k in event_samples(ds, events, detector)]
 
 
 def _boot_kw(cfg):
@@ -115,6 +156,177 @@ def _event_triggered(t, values, events, cfg, step, stem, of):
     return [lag_res, lead, peak, *excess], tau, mean, bar(mean), count
 
 
+def _per_sample(block_values: np.ndarray, per: int) -> np.ndarray:
+    """(R, S) means of (R, S·per) block values over each sample's ``per`` blocks."""
+    R, T = block_values.shape
+    return block_values[:, : T // per * per].reshape(R, T // per, per).mean(axis=2)
+
+
+def jamming_rows(ds: xr.Dataset, cfg) -> tuple[list[FitResult], dict[str, np.ndarray]]:
+    """Each jamming measure (:data:`~granpipe.shear.measures.JAMMING`) averaged over each
+    replica's samples, then over replicas; returns the rows and the per-replica means."""
+    rows, per_replica = [], {}
+    for key, (unit, long_name) in JAMMING.items():
+        v = np.nanmean(ds[f"jamming_{key}"].values, axis=1)
+        per_replica[key] = v
+        rows.append(
+            _over_replicas(
+                key,
+                v[np.isfinite(v)],
+                unit,
+                f"{long_name}: the mean over each replica's samples, then over replicas",
+                cfg,
+            )
+        )
+    return rows, per_replica
+
+
+PREDICTORS = {  # name: what scores a moment (the finite-time exponent of the issue's "when")
+    "lambda_all": "the whole tangent vector's growth rate (the finite-time maximal exponent)",
+    "lambda": "λ(t) over disks with two contacts",
+    "speed": "V(t), the disks' global speed (baseline)",
+}
+
+
+def when_prediction(ds: xr.Dataset, events: Mapping, idx: list, cfg) -> tuple[list, dict]:
+    """Does the recent finite-time exponent say *when* an event follows?
+
+    At each sample k where the detector has been quiet for ``quiet_s`` (an event could
+    start next) and the horizon lies inside the record, the score is the predictor's
+    mean over the ``predict_window_s`` ending at k and the label whether an event starts
+    within the ``predict_horizon_s`` after k. Rows ``when_auc_<predictor>``: the area
+    under the ROC curve pooled over replicas, bootstrap over replicas (0.5: no
+    prediction); ``when_moments`` and ``when_positives`` count the moments. Curves: the
+    ROC curves on a grid of false-positive rates and the histograms of the exponent's
+    scores before events and elsewhere.
+    """
+    dt = float(ds.attrs["sample_s"])
+    w = max(1, round(float(cfg["predict_window_s"]) / dt))
+    h = max(1, round(float(cfg["predict_horizon_s"]) / dt))
+    quiet = round(float(events["quiet_s"]) / dt)
+    active = _active(ds, events, events["detector"])
+    R, S = active.shape
+    per = round(dt / float(ds.attrs["block_s"]))
+    series = {"lambda_all": ds["lyapunov_all"].values,
+              "lambda": _per_sample(ds["local_lyapunov"].values, per)[:, :S],
+              "speed": _per_sample(ds["global_speed"].values, per)[:, :S]}  # fmt: skip
+    c = np.concatenate([np.zeros((R, 1)), np.cumsum(active, axis=1)], axis=1)
+    k = np.arange(S)
+    lo = np.maximum(k + 1 - quiet, 0)
+    candidate = ((c[:, k + 1] - c[:, lo]) == 0) & (k >= max(w, quiet) - 1) & (k + h < S)
+    labels = [event_follows(S, e, h)[candidate[r]] for r, e in enumerate(idx)]
+    n_pos = int(sum(y.sum() for y in labels))
+    rows, curves = [], {}
+    fpr_grid = np.linspace(0.0, 1.0, 101)
+    for name, what in PREDICTORS.items():
+        score = trailing_mean(series[name], w)
+        scores = [score[r][candidate[r]] for r in range(R)]
+        value, boot = bootstrap_auc(
+            scores,
+            labels,
+            **_boot_kw({**cfg, "bootstrap_resamples": max(int(cfg["bootstrap_resamples"]), 1)}),
+        )
+        res = FitResult(f"when_auc_{name}", value, math.nan, "1", n=n_pos,
+                        method=f"area under the ROC curve of {what} over the "
+                        f"{w * dt:g} s before each quiet moment predicting an event within "
+                        f"{h * dt:g} s, pooled over replicas (0.5: no prediction)")  # fmt: skip
+        if int(cfg["bootstrap_resamples"]) > 0 and R > 1:
+            res = res.with_ci(boot)
+        rows.append(res)
+        fpr, tpr = roc_curve(np.concatenate(scores), np.concatenate(labels))
+        curves[f"when_roc_{name}"] = (
+            np.interp(fpr_grid, fpr, tpr) if np.isfinite(fpr).all() else np.full(101, np.nan)
+        )
+    pooled = np.concatenate([trailing_mean(series["lambda_all"], w)[r][candidate[r]]
+                             for r in range(R)])  # fmt: skip
+    y = np.concatenate(labels)
+    finite = np.isfinite(pooled)
+    edges = (np.quantile(pooled[finite], np.linspace(0, 1, 41)) if finite.sum() > 1
+             else np.linspace(-1, 1, 41))  # fmt: skip
+    edges = np.unique(edges) if np.unique(edges).size > 1 else np.linspace(-1, 1, 41)
+    curves["when_hist_before"] = np.histogram(pooled[y & finite], edges, density=True)[0]
+    curves["when_hist_elsewhere"] = np.histogram(pooled[~y & finite], edges, density=True)[0]
+    curves["when_hist_edges"] = edges
+    rows.append(FitResult("when_moments", float(sum(len(x) for x in labels)), math.nan, "1",
+                          n=R, method="quiet moments scored (all replicas)"))  # fmt: skip
+    rows.append(FitResult("when_positives", float(n_pos), math.nan, "1", n=R,
+                          method="of them, moments followed by an event within the "
+                          "horizon"))  # fmt: skip
+    return rows, {**curves, "fpr": fpr_grid}
+
+
+def where_prediction(ds: xr.Dataset, idx: list, cfg) -> list[FitResult]:
+    """Does the Lyapunov vector say *where* an event happens?
+
+    For each event at sample e, the disks that rearrange are those with a changed
+    neighbour edge in it; the score of a disk is its |δu_i| ``where_lead_s`` before the
+    sample interval starts (baseline: its speed |v_i| then). Per event the precision at
+    the event's own size (:func:`~granpipe.analysis.prediction.precision_at_size`; a
+    random choice gives the set's share) and the area under the ROC curve over the disks;
+    the mean over each replica's events, then over replicas, bootstrap over replicas.
+    """
+    lead = max(1, round(float(cfg["where_lead_s"]) / float(ds.attrs["sample_s"])))
+    du, v, ch = (ds[k].values for k in ("disk_du", "disk_speed", "disk_changes"))
+    per_rep = {k: [] for k in ("precision_du", "precision_speed", "precision_random",
+                               "auc_du", "auc_speed", "event_size")}  # fmt: skip
+    n_ev = 0
+    for r, events in enumerate(idx):
+        got = {k: [] for k in per_rep}
+        for e in events[events >= lead]:
+            members = ch[r, e] > 0
+            if not members.any():
+                continue
+            got["precision_du"].append(precision_at_size(du[r, e - lead], members))
+            got["precision_speed"].append(precision_at_size(v[r, e - lead], members))
+            got["precision_random"].append(members.mean())
+            got["auc_du"].append(roc_auc(du[r, e - lead], members))
+            got["auc_speed"].append(roc_auc(v[r, e - lead], members))
+            got["event_size"].append(members.sum())
+        n_ev += len(got["event_size"])
+        for k, x in got.items():
+            if x:
+                per_rep[k].append(np.nanmean(x))
+    what = {"precision_du": "fraction of the rearranging disks among those with the largest "
+                            "|δu_i|, as many as rearrange",
+            "precision_speed": "the same with the largest speeds |v_i| (baseline)",
+            "precision_random": "the rearranging disks' share of all disks (a random "
+                                "choice's expected precision)",
+            "auc_du": "area under the ROC curve of |δu_i| over the disks, the rearranging "
+                      "ones positive",
+            "auc_speed": "the same of |v_i| (baseline)",
+            "event_size": "disks that rearrange per event"}  # fmt: skip
+    rows = []
+    for k, x in per_rep.items():
+        res = _over_replicas(f"where_{k}", np.asarray(x), "1", f"{what[k]}, "
+                             f"{lead * float(ds.attrs['sample_s']):g} s before the event's "
+                             "sample interval; mean over each replica's events, then over "
+                             "replicas", cfg)  # fmt: skip
+        rows.append(dataclasses.replace(res, n=n_ev))
+    return rows
+
+
+def detector_comparison(ds: xr.Dataset, events: Mapping, idx: list, cfg) -> list[FitResult]:
+    """Both detectors side by side: the rate of stress releases (the springs' energy
+    falling by ``release_drop`` of its median) and the fraction of them within one sample
+    of a burst of network changes of the default detector."""
+    dt = float(ds.attrs["sample_s"])
+    R, S = ds["network_changes"].shape
+    record = S * dt
+    net = event_samples(ds, events, "network")
+    rel = event_samples(ds, events, "energy")
+    n_rel = sum(len(e) for e in rel)
+    near = [np.isin(e, np.concatenate([n - 1, n, n + 1])) for e, n in zip(rel, net, strict=True)]
+    coincident = float(np.concatenate(near).mean()) if n_rel else math.nan
+    return [
+        FitResult("release_event_rate", n_rel / (R * record), math.nan, "1/s", n=n_rel,
+                  method="stress releases (the normal springs' energy falling by at least "
+                  f"{float(events['release_drop']):g} of its median) per replica and second"),
+        FitResult("release_network_coincidence", coincident, math.nan, "1", n=n_rel,
+                  method="fraction of the stress releases within one sample of a burst of "
+                  "network changes"),
+    ]  # fmt: skip
+
+
 def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dataset]:
     """The point's fitted numbers and curves from its runs (``ds``: batches concatenated
     along ``replica``); ``params`` is the fits rule's subset."""
@@ -128,7 +340,9 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
     res.append(_over_replicas("lambda_all_mean", per_replica_all, "1/t0", "growth rate of "
                               "the whole tangent vector (all mobile disks, rattlers included) "
                               "over the record, mean over replicas", cfg))  # fmt: skip
-    events = event_times(ds, params["events"])
+    idx = event_samples(ds, params["events"])
+    t_event = ds["sample"].values - float(ds.attrs["sample_s"]) / 2.0
+    events = [t_event[k] for k in idx]
     n_ev = sum(len(e) for e in events)
     record = float(ds["time"].values[-1] + ds.attrs["block_s"] / 2)
     res.append(FitResult("event_rate", n_ev / (R * record), math.nan, "1/s", n=n_ev,
@@ -160,6 +374,11 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
         res.append(_over_replicas(f"correlation_{name}", v[np.isfinite(v)], "1", "C(|δu|, |v|) "
                                   f"averaged over each replica's {name} samples, then over "
                                   "replicas", cfg))  # fmt: skip
+    jam_rows, jam = jamming_rows(ds, cfg)
+    res += jam_rows
+    when_rows, when = when_prediction(ds, params["events"], idx, cfg)
+    res += when_rows + where_prediction(ds, idx, cfg)
+    res += detector_comparison(ds, params["events"], idx, cfg)
     label = "time after each event"
     curves = xr.Dataset(
         {
@@ -188,40 +407,134 @@ def point_fits(ds: xr.Dataset, params: Mapping) -> tuple[list[FitResult], xr.Dat
             "snapshot_speed": ("disk", ds["snapshot_speed"].values[0],
                                ds["snapshot_speed"].attrs),
             "diameter": ("disk", ds["diameter"].values, ds["diameter"].attrs),
+            **{f"{k}_replica_mean": ("replica", jam[k], {"units": JAMMING[k][0],
+               "long_name": f"{JAMMING[k][1]}, per replica"}) for k in JAMMING},
+            **{f"when_roc_{k}": ("fpr", when[f"when_roc_{k}"], {"units": "1", "long_name":
+               f"true-positive rate of {PREDICTORS[k]} predicting an event"})
+               for k in PREDICTORS},
+            "when_hist_before": ("score_bin", when["when_hist_before"], {"units": "t0",
+                                 "long_name": "density of the exponent's scores before events"}),
+            "when_hist_elsewhere": ("score_bin", when["when_hist_elsewhere"], {"units": "t0",
+                                    "long_name": "... at the other quiet moments"}),
+            "when_hist_edges": ("score_edge", when["when_hist_edges"], {"units": "1/t0",
+                                "long_name": "edges of the score bins"}),
         },
         coords={"tau": ("tau", tau, {"units": "s", "long_name": label}),
                 "tau_sample": ("tau_sample", tau_s, {"units": "s", "long_name": label}),
+                "fpr": ("fpr", when["fpr"], {"units": "1", "long_name": "false-positive rate"}),
                 "replica": ds["replica"]},
     )  # fmt: skip
     return res, curves
 
 
-def phi_crossing(phis, replica_means, cfg: Mapping, name="phi_lambda_zero",
-                 of="the time average of λ") -> FitResult:  # fmt: skip
-    """φ where the replicas' mean of ``of`` first crosses zero (either way: Ref. [20] finds
-    it chaotic below the crossing, not above; the direction is a result here), by linear
-    interpolation between the grid points; bootstrap over each point's replicas.
+TRANSITIONS = {  # name: (unit, method)
+    "phi_lambda_zero": (
+        "1",
+        "first zero crossing in φ of the replica mean of the time "
+        "average of λ (over disks with two contacts), linear between points",
+    ),
+    "phi_lambda_all_zero": (
+        "1",
+        "φ*: first zero crossing in φ of the replica mean of the "
+        "maximal exponent (the whole tangent vector's growth rate, "
+        "rattlers included), linear between points",
+    ),
+    "phi_J_z_frictionless": (
+        "1",
+        "φ_J: where the mean contact number of the non-rattlers "
+        "(fewer than 3 contacts removed) first reaches 4, the "
+        "frictionless isostatic value, linear between points",
+    ),
+    "phi_J_z_frictional": (
+        "1",
+        "φ_J: where the mean contact number of the non-rattlers "
+        "(fewer than 2 contacts removed) first reaches 3, the frictional "
+        "isostatic value, linear between points",
+    ),
+    "phi_J_pressure": (
+        "1",
+        "φ_J: the break of a two-segment linear fit of the logarithm of "
+        "the pressure on the outer ring against φ (where it leaves zero)",
+    ),
+    "phi_J_overlap": (
+        "1",
+        "φ_J: the break of a two-segment linear fit of the logarithm of the mean overlap against φ",
+    ),
+    "hexatic_at_phi_star": ("1", "bulk |ψ6| at φ*, linear between points"),
+    "phi_star_minus_phi_J_z": ("1", "φ* − φ_J(z, frictionless reading)"),
+    "phi_star_minus_phi_J_pressure": ("1", "φ* − φ_J(pressure)"),
+}
+"""The rows :func:`transitions` gives across φ."""
+
+TABLE_KEYS = ("lambda", "lambda_all", "z_frictionless", "z_frictional", "pressure", "overlap",
+              "hexatic")  # fmt: skip
+"""The per-replica means :func:`transitions` reads at each point."""
+
+
+def _break(phis, y):
+    """(B,) the break in φ of a two-segment linear fit of ln y (B, P); NaN if undefined."""
+    out = np.full(y.shape[0], np.nan)
+    for b, yb in enumerate(y):
+        ok = np.isfinite(yb) & (yb > 0)
+        if ok.sum() >= 5:
+            fit = segmented_fit(phis[ok], np.log(yb[ok]), 1, ci_method="wald")
+            out[b] = fit.breakpoints[0]
+    return out
+
+
+def _transition_values(phis, m) -> np.ndarray:
+    """(B, len(TRANSITIONS)) from the means ``m[key]`` (B, P) over the points."""
+    star = first_crossing(phis, m["lambda_all"], None, 0)
+    z = first_crossing(phis, m["z_frictionless"] - 4.0, None, +1)
+    pressure = _break(phis, m["pressure"])
+    hexatic = np.array([np.interp(s, phis, h) if np.isfinite(s) else np.nan
+                        for s, h in zip(star, m["hexatic"], strict=True)])  # fmt: skip
+    cols = [first_crossing(phis, m["lambda"], None, 0), star, z,
+            first_crossing(phis, m["z_frictional"] - 3.0, None, +1), pressure,
+            _break(phis, m["overlap"]), hexatic, star - z, star - pressure]  # fmt: skip
+    return np.stack(cols, axis=-1)
+
+
+def transitions(phis, tables: list[Mapping], cfg: Mapping, suffix: str = "") -> list:
+    """Ref. [20]'s transition and the cell's jamming point across φ (:data:`TRANSITIONS`),
+    each with a percentile bootstrap that resamples every point's replicas at once, so
+    that differences such as φ* − φ_J keep their correlation.
 
     Parameters
     ----------
-    phis : (P,) increasing; replica_means : P arrays (R_p,) [1/t0], each point's replicas
-    name, of : the row's quantity and what its method names
+    phis : (P,) increasing
+    tables : P mappings of :data:`TABLE_KEYS` to (R_p,) per-replica means at each point
+    cfg : ``bootstrap_resamples``, ``confidence``, ``seed``
+    suffix : appended to each row's quantity (a variant's ``[name]``)
+
+    A crossing is empty (NaN) where the quantity keeps its sign over the grid; a break
+    needs five points with a positive mean.
     """
     phis = np.asarray(phis, dtype=np.float64)
-    means = np.array([np.mean(m) for m in replica_means])
-    value = float(first_crossing(phis, means, None, 0))
-    res = FitResult(name, value, math.nan, "1", n=len(phis), method="first zero crossing in "
-                    f"φ of the replica mean of {of}, linear between grid points")  # fmt: skip
+    full = {k: np.array([[np.nanmean(t[k]) for t in tables]]) for k in TABLE_KEYS}
+    values = _transition_values(phis, full)[0]
     n = int(cfg["bootstrap_resamples"])
-    if n > 0 and all(len(m) > 1 for m in replica_means):
+    boot = None
+    if n > 0 and len(phis) > 1 and all(len(t["lambda_all"]) > 1 for t in tables):
         rng = np.random.default_rng(int(cfg["seed"]))
-        boot = np.stack([[rng.choice(m, len(m)).mean() for m in replica_means] for _ in range(n)])
-        x = first_crossing(phis, boot, None, 0)
-        ok = np.isfinite(x)
+        draws = [rng.integers(0, len(t["lambda_all"]), (n, len(t["lambda_all"])))
+                 for t in tables]  # fmt: skip
+        m = {k: np.stack([np.nanmean(np.asarray(t[k])[d], axis=1)
+                          for t, d in zip(tables, draws, strict=True)], axis=1)
+             for k in TABLE_KEYS}  # fmt: skip
+        samples = _transition_values(phis, m)
         a = (1.0 - float(cfg["confidence"])) / 2.0
-        if ok.any():
-            lo, hi = np.quantile(x[ok], [a, 1.0 - a])
-            res = FitResult(res.quantity, value, math.nan, "1", float(lo), float(hi),
-                            float(cfg["confidence"]), n=len(phis), n_resamples=n,
-                            n_failed=int((~ok).sum()), method=res.method)  # fmt: skip
-    return res
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            lo, hi = np.nanquantile(samples, a, 0), np.nanquantile(samples, 1 - a, 0)
+        boot = BootstrapResult(samples, lo, hi, float(cfg["confidence"]), n, len(phis),
+                               np.isnan(samples).sum(0), int(cfg["seed"]))  # fmt: skip
+    rows = []
+    for c, (name, (unit, method)) in enumerate(TRANSITIONS.items()):
+        res = FitResult(f"{name}{suffix}", float(values[c]), math.nan, unit, n=len(phis),
+                        method=method)  # fmt: skip
+        if boot is not None and np.isfinite(values[c]):
+            res = res.with_ci(boot, c)
+            res = dataclasses.replace(res, n=len(phis))
+        rows.append(res)
+    return rows

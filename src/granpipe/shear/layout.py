@@ -1,12 +1,16 @@
 """Where the shear study's files live, its parameter points, cross-key checks and the
 config subset of each rule (used by workflow/rules/shear.smk; docs/architecture.md).
 
-A point is one packing fraction, named ``phi=0.82``. Paths are relative to
+A point is one packing fraction of the base section, named ``phi=0.82``, or of a
+variant (``shear.variants``: named overrides of the physics and the preparation, with a
+φ grid of their own), named ``<variant>/phi=0.82``. Paths are relative to
 ``results/<scale>/shear/``: ``runs/<point>/batch_<b>.nc``, ``fits/<point>.nc``,
 ``fits/summary.csv``, ``figures/fig<k>_<name>.png``.
 
     >>> point_name(0.82)
     'phi=0.82'
+    >>> point_name(0.82, "wide")
+    'wide/phi=0.82'
 """
 
 from __future__ import annotations
@@ -16,25 +20,52 @@ from collections.abc import Mapping
 
 from ..errors import ConfigError
 
-__all__ = ["check", "FIGURES", "point_name", "phis", "points", "batches", "run_file",
-           "fits_file", "physics_for", "runs_params", "fits_params", "summary_params",
-           "figures_params", "run_files"]  # fmt: skip
+__all__ = ["check", "FIGURES", "point_name", "split_point", "variants", "phis", "points",
+           "batches", "run_file", "fits_file", "physics_for", "preparation_for",
+           "runs_params", "fits_params", "summary_params", "figures_params",
+           "run_files"]  # fmt: skip
 
-FIGURES = ("fig1_lambda_vs_phi", "fig2_event_triggered", "fig3_contrast", "fig4_chaos_map")
-
-
-def point_name(phi: float | str) -> str:
-    """``phi=<φ>`` (a wildcard's text or a number)."""
-    return f"phi={float(phi):g}"
+FIGURES = ("fig1_lambda_vs_phi", "fig2_event_triggered", "fig3_contrast", "fig4_chaos_map",
+           "fig5_jamming", "fig6_prediction", "fig7_variants")  # fmt: skip
 
 
-def phis(cfg: Mapping) -> list[float]:
-    p = cfg["physics"]["phi"]
+def point_name(phi: float | str, variant: str = "") -> str:
+    """``phi=<φ>``, or ``<variant>/phi=<φ>`` for a variant's point (``phi`` a wildcard's
+    text or a number)."""
+    name = f"phi={float(phi):g}"
+    return f"{variant}/{name}" if variant else name
+
+
+def split_point(point: str) -> tuple[str, float]:
+    """(variant, φ) of a point name (variant ``""``: the base section)."""
+    variant, _, name = point.rpartition("/")
+    return variant, float(name.split("=", 1)[1])
+
+
+def variants(cfg: Mapping) -> list[str]:
+    """``""`` (the base section) and each variant's name, sorted."""
+    return ["", *sorted(cfg.get("variants", {}))]
+
+
+def _overrides(cfg: Mapping, variant: str, part: str) -> dict:
+    if not variant:
+        return {}
+    if variant not in cfg.get("variants", {}):
+        raise ConfigError(f"variant {variant!r} is not in 'shear.variants' = "
+                          f"{sorted(cfg.get('variants', {}))}")  # fmt: skip
+    return dict(cfg["variants"][variant].get(part, {}))
+
+
+def phis(cfg: Mapping, variant: str = "") -> list[float]:
+    """The φ grid of the base section or of a variant (its own, default the base's)."""
+    p = {**cfg["physics"], **_overrides(cfg, variant, "physics")}["phi"]
     return sorted(float(x) for x in (p if isinstance(p, list | tuple) else [p]))
 
 
-def points(cfg: Mapping) -> list[str]:
-    return [point_name(x) for x in phis(cfg)]
+def points(cfg: Mapping, variant: str | None = None) -> list[str]:
+    """Every point (``variant`` None), or those of the base (``""``) or one variant."""
+    names = variants(cfg) if variant is None else [variant]
+    return [point_name(x, v) for v in names for x in phis(cfg, v)]
 
 
 def batches(cfg: Mapping) -> list[str]:
@@ -51,11 +82,18 @@ def fits_file(point: str) -> str:
 
 
 def physics_for(cfg: Mapping, point: str) -> dict:
-    """The physics section at one point (``phi`` one number, as its name says)."""
-    phi = float(point.split("=", 1)[1])
-    if phi not in phis(cfg):
-        raise ConfigError(f"point {point!r} is not in 'shear.physics.phi' = {phis(cfg)}")
-    return {**cfg["physics"], "phi": phi}
+    """The physics section at one point (its variant's overrides, ``phi`` one number, as
+    its name says)."""
+    variant, phi = split_point(point)
+    if phi not in phis(cfg, variant):
+        key = f"shear.variants.{variant}.physics.phi" if variant else "shear.physics.phi"
+        raise ConfigError(f"point {point!r} is not in '{key}' = {phis(cfg, variant)}")
+    return {**cfg["physics"], **_overrides(cfg, variant, "physics"), "phi": phi}
+
+
+def preparation_for(cfg: Mapping, point: str) -> dict:
+    """The preparation section at one point (its variant's overrides)."""
+    return {**cfg["preparation"], **_overrides(cfg, split_point(point)[0], "preparation")}
 
 
 BYTES_PER_DISK = 4096
@@ -73,34 +111,41 @@ def check(cfg: Mapping) -> None:
     from .model import ShearCell, n_disks
     from .preparation import placement
 
-    ph, pr, fits = cfg["physics"], cfg["protocol"], cfg["fits"]
-    if int(ph["n_outer"]) <= int(ph["n_inner"]):
-        raise ConfigError("config key 'shear.physics.n_outer' must exceed 'n_inner' (the outer "
-                          "ring encloses the inner)")  # fmt: skip
-    n_phi = len(ph["phi"]) if isinstance(ph["phi"], list | tuple) else 1
+    pr, fits = cfg["protocol"], cfg["fits"]
     e = cfg["ensemble"]  # the plan and each job's memory, counted before anything is built
-    jobs = n_phi * -(-int(e["n_replicas"]) // int(e["batch_size"]))
+    jobs = len(points(cfg)) * -(-int(e["n_replicas"]) // int(e["batch_size"]))
     check_plan("shear.ensemble.n_replicas", jobs, "raise 'shear.ensemble.batch_size' or list "
                "fewer phi")  # fmt: skip
-    disks = n_disks({**ph, "phi": max(phis(cfg))}) + int(ph["n_inner"]) + int(ph["n_outer"])
-    check_memory("shear.physics.n_outer", ph["n_outer"], BYTES_PER_DISK * disks)
     blocks = float(pr["record_s"]) / float(pr["block_s"])
-    check_memory(
-        "shear.protocol.record_s", pr["record_s"], 16.0 * blocks * (2 + int(e["batch_size"]))
-    )
-    prep = cfg["preparation"]
+    samples = float(pr["record_s"]) / float(pr["sample_s"])
     for point in points(cfg):
-        cell = ShearCell.from_physics(physics_for(cfg, point))
-        if cell.r_out - cell.r_in < 2.0 * float(ph["d_large"]):
-            raise ConfigError("config key 'shear.physics.n_outer': the annulus is narrower "
-                              "than two large disks")  # fmt: skip
+        variant = split_point(point)[0]
+        key = f"shear.variants.{variant}." if variant else "shear."
+        phys = physics_for(cfg, point)
+        if int(phys["n_outer"]) <= int(phys["n_inner"]):
+            raise ConfigError(f"config key '{key}physics.n_outer' must exceed 'n_inner' (the "
+                              "outer ring encloses the inner)")  # fmt: skip
+        n = n_disks(phys)
+        disks = n + int(phys["n_inner"]) + int(phys["n_outer"])
+        check_memory(f"{key}physics.n_outer", phys["n_outer"], BYTES_PER_DISK * disks)
+        per_replica = 16.0 * blocks + 9.0 * samples * n  # block records, per-disk samples
+        check_memory("shear.protocol.record_s", pr["record_s"],
+                     per_replica * (2 + int(e["batch_size"])))  # fmt: skip
+        cell = ShearCell.from_physics(phys)
+        if cell.r_out - cell.r_in < 2.0 * float(phys["d_large"]):
+            raise ConfigError(f"config key '{key}physics.n_outer' at {point}: the annulus is "
+                              "narrower than two large disks")  # fmt: skip
+        prep = preparation_for(cfg, point)
         try:
             placement(cell, float(prep["start_scale"]), float(prep["gap"]),
                       np.random.default_rng(0))  # fmt: skip
         except RuntimeError as exc:
             raise ConfigError(
-                f"config key 'shear.preparation.start_scale' at {point}: {exc}"
+                f"config key '{key}preparation.start_scale' at {point}: {exc}"
             ) from None
+    if float(fits["where_lead_s"]) < float(pr["sample_s"]) * (1 - 1e-9):
+        raise ConfigError("config key 'shear.fits.where_lead_s' is shorter than one sample "
+                          "('shear.protocol.sample_s')")  # fmt: skip
     contrast = cfg["figures"]["contrast_phi"]
     if contrast is not None and float(contrast) not in phis(cfg):
         raise ConfigError(f"config key 'shear.figures.contrast_phi' = {contrast} is not one of "
@@ -117,7 +162,7 @@ def runs_params(cfg: Mapping, point: str) -> dict:
     """A batch's subset: the point's physics, the preparation, the protocol, the edge
     cutoff (the network is compared in the run) and the batch size."""
     return {"point": point, "physics": physics_for(cfg, point),
-            "preparation": cfg["preparation"], "protocol": cfg["protocol"],
+            "preparation": preparation_for(cfg, point), "protocol": cfg["protocol"],
             "events": {"edge_cutoff": cfg["events"]["edge_cutoff"]},
             "batch_size": cfg["ensemble"]["batch_size"]}  # fmt: skip
 
@@ -130,16 +175,19 @@ def fits_params(cfg: Mapping, point: str) -> dict:
     ev = cfg["events"]
     return {"point": point, "runs_config_hash": config_hash(runs_params(cfg, point)),
             "n_replicas": cfg["ensemble"]["n_replicas"],
-            "events": {"min_changes": ev["min_changes"], "quiet_s": ev["quiet_s"]},
+            "events": {k: ev[k] for k in ("min_changes", "quiet_s", "detector",
+                                          "release_drop")},
             "fits": cfg["fits"]}  # fmt: skip
 
 
 def summary_params(cfg: Mapping) -> dict:
-    """The summary (and the zero crossing of ⟨λ⟩ in φ): each point's fits hash."""
+    """The summary (and the transitions across φ): each point's fits hash, the variants'
+    names."""
     from ..io import config_hash
 
     f = cfg["fits"]
     return {"points": {p: config_hash(fits_params(cfg, p)) for p in points(cfg)},
+            "variants": {v: {} for v in variants(cfg) if v},
             "bootstrap_resamples": f["bootstrap_resamples"], "confidence": f["confidence"],
             "seed": f["seed"]}  # fmt: skip
 

@@ -10,10 +10,15 @@
    norm over disks with at least two contacts, as the drum) and V(t) over
    ``protocol.block_s``; every ``protocol.sample_s`` the neighbour network's changes
    since the sample before, the correlation C(|δu|, |v|) over the mobile disks
-   (:mod:`granpipe.shear.measures`) and the growth rate of the whole tangent vector over
+   (:mod:`granpipe.shear.measures`), the growth rate of the whole tangent vector over
    the sample (all mobile disks, rattlers included: the finite-time maximal exponent,
-   docs/shear.md, "Two readings of λ"), so nothing per disk and step is stored; at the
-   end a snapshot (positions, |δu_i|, |v_i|) for the figure of where the chaos lives.
+   docs/shear.md, "Two readings of λ"), the jamming measures (the contact number z of
+   the non-rattlers in both readings, the normal springs' energy, the pressure on the
+   outer ring and the torque on the inner one, the bulk |ψ6|; docs/shear.md, "The
+   cell's jamming point") and, per disk, |δu_i| over its largest, |v_i| and the changed
+   edges it is an end of (what the predictions of rearrangements read: docs/shear.md,
+   "Predicting rearrangements"); nothing per step is stored; at the end a snapshot
+   (positions, |δu_i|, |v_i|) for the figure of where the chaos lives.
 
 A replica's stream is ``replica_rng("shear", physics, replica)`` with ``physics`` the
 point's section: its first child places the disks, the second draws the tangent vector.
@@ -30,7 +35,16 @@ import xarray as xr
 from ..analysis.lyapunov import lyapunov_vector_magnitude, speed_lyapunov_correlation
 from ..errors import SimulationError
 from ..seeds import replica_rng, replica_seed
-from .measures import neighbour_edges, network_changes
+from .measures import (
+    JAMMING,
+    bulk_hexatic_order,
+    contact_number,
+    contact_pairs,
+    edge_change_counts,
+    elastic_measures,
+    neighbour_edges,
+    network_changes,
+)
 from .model import ShearCell
 from .preparation import grow
 
@@ -79,6 +93,13 @@ def run_replica(section: Mapping, replica: int, log: Callable[[str], None] = lam
     changes = np.zeros(st.n_samples, dtype=np.int64)
     corr = np.empty(st.n_samples)
     lam_all = np.empty(st.n_samples)
+    jam = {k: np.empty(st.n_samples) for k in JAMMING}
+    disk_du = np.empty((st.n_samples, n), np.float32)
+    disk_speed = np.empty((st.n_samples, n), np.float32)
+    disk_changes = np.empty((st.n_samples, n), np.uint8)
+    inner = np.r_[np.zeros(n, bool), cell.rate == 1.0]
+    outer = np.r_[np.zeros(n, bool), cell.rate == 0.0]
+    depth = float(section["protocol"]["bulk_depth"])
     before, ln_before = edges(), log_norm()
     per = st.sample // st.block
     for k in range(st.n_samples):
@@ -87,12 +108,25 @@ def run_replica(section: Mapping, replica: int, log: Callable[[str], None] = lam
         speed[k * per : (k + 1) * per] = rec.global_speed
         after = edges()
         changes[k] = network_changes(before, after)
+        disk_changes[k] = np.minimum(edge_change_counts(before, after, len(radii))[:n], 255)
         before = after
         dr, dv = state.tangent_stored
         corr[k] = speed_lyapunov_correlation(state.velocities, dr, dv, mobile)
+        disk_du[k] = lyapunov_vector_magnitude(dr[:n], dv[:n], relative=True)
+        disk_speed[k] = np.hypot(*state.velocities[:n].T)
         ln_after = log_norm()
         lam_all[k] = (ln_after - ln_before) / (st.sample * float(section["physics"]["dt"]))
         ln_before = ln_after
+        pos = state.positions
+        c = contact_pairs(pos, radii, mobile)
+        for key, m in (("z_frictionless", 3), ("z_frictional", 2)):
+            z, rattler = contact_number(c, mobile, m)
+            jam[key][k] = z
+            jam[key.replace("z_", "rattlers_")][k] = rattler.sum() / n
+        el = elastic_measures(c, pos, float(cell.physics["k_n"]), inner, outer, cell.r_out)
+        for key in ("energy", "pressure", "torque", "overlap"):
+            jam[key][k] = el[key]
+        jam["hexatic"][k] = bulk_hexatic_order(pos[:n], cell.r_in, cell.r_out, depth)
     dr, dv = state.tangent_stored
     du = lyapunov_vector_magnitude(dr[:n], dv[:n], relative=True)
     log(f"replica {replica}: N = {n}, {st.n_samples} samples, "
@@ -101,6 +135,7 @@ def run_replica(section: Mapping, replica: int, log: Callable[[str], None] = lam
         "lam": lam, "speed": speed, "changes": changes, "corr": corr, "lam_all": lam_all,
         "positions": state.positions[:n].copy(), "du": du,
         "v": np.hypot(*state.velocities[:n].T), "diameters": cell.diameters,
+        "disk_du": disk_du, "disk_speed": disk_speed, "disk_changes": disk_changes, **jam,
     }  # fmt: skip
 
 
@@ -127,6 +162,11 @@ def run_batch(section: Mapping, replicas, log: Callable[[str], None] = lambda m:
                                        "over the mobile disks"),
         "lyapunov_all": (sample, "lam_all", "1/t0", "growth rate of the whole tangent vector "
                          "(all mobile disks, rattlers included) over the sample"),
+        **{f"jamming_{k}": (sample, k, u, ln) for k, (u, ln) in JAMMING.items()},
+        "disk_du": (sample + ("disk",), "disk_du", "1", "|δu_i| over its largest at the sample"),
+        "disk_speed": (sample + ("disk",), "disk_speed", "d_s/t0", "|v_i| at the sample"),
+        "disk_changes": (sample + ("disk",), "disk_changes", "1", "neighbour edges of the disk "
+                         "changed since the sample before (at most 255)"),
         "snapshot_positions": (rep + ("disk", "xy"), "positions", "d_s", "centres at the end"),
         "snapshot_du": (rep + ("disk",), "du", "1", "|δu_i| at the end over its largest"),
         "snapshot_speed": (rep + ("disk",), "v", "d_s/t0", "|v_i| at the end"),

@@ -16,6 +16,8 @@ import numpy as np
 import xarray as xr
 
 from ..io import RunFileError, check_run_files, expect_input, read_dataset, write_dataset
+from .layout import split_point, variants
+from .measures import JAMMING
 
 __all__ = ["runs_stage", "fits_stage", "summary_stage", "figures_stage"]
 
@@ -24,10 +26,12 @@ __all__ = ["runs_stage", "fits_stage", "summary_stage", "figures_stage"]
 # earlier granpipe wrote may lack some: refused naming the rule to force)
 RUN_VARIABLES = ("local_lyapunov", "global_speed", "network_changes",
                  "speed_lyapunov_correlation", "lyapunov_all", "snapshot_positions",
-                 "snapshot_du", "snapshot_speed", "diameter")  # fmt: skip
+                 "snapshot_du", "snapshot_speed", "diameter", "disk_du", "disk_speed",
+                 "disk_changes", *(f"jamming_{k}" for k in JAMMING))  # fmt: skip
 FITS_VARIABLES = ("lambda_replica_mean", "lambda_all_replica_mean", "aligned_lambda_bar",
                   "aligned_count", "aligned_lambda_all_bar", "tau_sample", "event_lag",
-                  "snapshot_du")  # fmt: skip
+                  "snapshot_du", "when_roc_lambda_all",
+                  *(f"{k}_replica_mean" for k in JAMMING))  # fmt: skip
 
 
 def _log(msg):
@@ -74,7 +78,7 @@ def fits_stage(params: Mapping, run_files: Sequence, out) -> Path:
     fits = xr.merge([results_dataset(results), curves])
     fits.attrs["quantities"] = " ".join(r.quantity for r in results)
     path = write_dataset(fits, out, config_subset=params, study="shear", stage="fits",
-                         point=point, phi=float(point.split("=")[1]))  # fmt: skip
+                         point=point, phi=split_point(point)[1])  # fmt: skip
     _log(f"wrote {path}")
     return path
 
@@ -87,8 +91,9 @@ def _fits_files(params: Mapping, paths: Sequence) -> dict[str, xr.Dataset]:
         point = str(ds.attrs.get("point"))
         if point not in want:
             raise RunFileError(f"{p} holds the fits of {point}, not a point of this config")
-        if Path(p).stem != point:
-            raise RunFileError(f"{p} holds the fits of {point}, not of {Path(p).stem}")
+        named = f"{Path(p).parent.name}/{Path(p).stem}" if "/" in point else Path(p).stem
+        if named != point:
+            raise RunFileError(f"{p} holds the fits of {point}, not of {named}")
         if point in seen:
             raise RunFileError(f"point {point} appears twice")
         expect_input(ds, p, study="shear", stage="fits", point=point, config_hash=want[point],
@@ -97,38 +102,51 @@ def _fits_files(params: Mapping, paths: Sequence) -> dict[str, xr.Dataset]:
     missing = [pt for pt in want if pt not in seen]
     if missing:
         raise RunFileError(f"no fits file of the point(s) {', '.join(missing)}")
-    return {pt: seen[pt] for pt in sorted(seen, key=lambda s: float(s.split("=")[1]))}
+    return {pt: seen[pt] for pt in sorted(seen, key=split_point)}
+
+
+def _variant(fits: Mapping[str, xr.Dataset], variant: str) -> dict[str, xr.Dataset]:
+    """The fits of one variant's points (``""``: the base section's), in φ order."""
+    return {pt: ds for pt, ds in fits.items() if split_point(pt)[0] == variant}
+
+
+def _transitions(params: Mapping, fits: Mapping[str, xr.Dataset], variant: str) -> list:
+    """The rows of :func:`granpipe.shear.fits.transitions` of one variant."""
+    from .fits import TABLE_KEYS, transitions
+
+    own = _variant(fits, variant)
+    phis = [split_point(pt)[1] for pt in own]
+    tables = [{k: ds[f"{k}_replica_mean"].values for k in TABLE_KEYS} for ds in own.values()]
+    return transitions(phis, tables, params, f"[{variant}]" if variant else "")
 
 
 def summary_stage(params: Mapping, fits_files: Sequence, out) -> Path:
-    """summary.csv: each point's rows (quantity ``<name>[phi=...]``),
-    ``phi_lambda_zero`` and ``phi_lambda_all_zero``."""
+    """summary.csv: each point's rows (quantity ``<name>[<point>]``) and, per variant
+    (the base section's without a suffix, a variant's with ``[<variant>]``), the
+    transition and the jamming point across φ (:data:`granpipe.shear.fits.TRANSITIONS`)."""
     from ..analysis.summary import results_rows, write_summary
-    from .fits import phi_crossing
 
     fits = _fits_files(params, fits_files)
     rows = []
     for point, ds in fits.items():
         for row in results_rows(ds, "shear"):
             rows.append({**row, "quantity": f"{row['quantity']}[{point}]"})
-    phis = [float(ds.attrs["phi"]) for ds in fits.values()]
-    means = [ds["lambda_replica_mean"].values for ds in fits.values()]
-    rows.append(phi_crossing(phis, means, params).to_row("shear"))
-    means = [ds["lambda_all_replica_mean"].values for ds in fits.values()]
-    of = "the whole tangent vector's growth rate (rattlers included)"
-    rows.append(phi_crossing(phis, means, params, "phi_lambda_all_zero", of).to_row("shear"))
+    for variant in variants(params):
+        rows += [r.to_row("shear") for r in _transitions(params, fits, variant)]
     path = write_summary(rows, out, merge=False)
     _log(f"wrote {len(rows)} rows to {path}")
     return path
 
 
 def figures_stage(params: Mapping, fits_files: Sequence, out_dir, drum_fits=None) -> list:
-    """Figs. 1-4 (PNG and PDF); the contrast figure takes the drum's reference fits file
-    when the scale runs the drum (``drum_fits``), else shows the shear cell alone."""
+    """Figs. 1-7 (PNG and PDF) of the base section's points, and of every variant's
+    transition (Fig. 7); the contrast figure takes the drum's reference fits file when the
+    scale runs the drum (``drum_fits``), else shows the shear cell alone."""
     from ..figures import save_figure
     from ..figures import shear as F
 
-    fits = _fits_files(params, fits_files)
+    every = _fits_files(params, fits_files)
+    fits = _variant(every, "")
     drum = None
     if drum_fits is not None:
         drum = read_dataset(drum_fits)
@@ -136,17 +154,23 @@ def figures_stage(params: Mapping, fits_files: Sequence, out_dir, drum_fits=None
     phi = params["contrast_phi"]
     if phi is None:  # the largest φ with a lead time
         have = [pt for pt, ds in fits.items() if np.isfinite(float(ds["event_lag"]))]
-        phi = float((have or list(fits))[-1].split("=")[1])
+        phi = split_point((have or list(fits))[-1])[1]
     chosen = fits.get(f"phi={float(phi):g}")
     if chosen is None:
         raise RunFileError(f"figures.contrast_phi = {phi} is not a point of this config")
+    trans = {v: _transitions(params, every, v) for v in variants(params)}
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     dpi = int(params["dpi"])
+    figures = {"fig1_lambda_vs_phi": lambda: F.fig1_lambda_vs_phi(fits),
+               "fig2_event_triggered": lambda: F.fig2_event_triggered(fits),
+               "fig3_contrast": lambda: F.fig3_contrast(chosen, drum),
+               "fig4_chaos_map": lambda: F.fig4_chaos_map(chosen),
+               "fig5_jamming": lambda: F.fig5_jamming(fits, trans[""]),
+               "fig6_prediction": lambda: F.fig6_prediction(fits),
+               "fig7_variants": lambda: F.fig7_variants(trans)}  # fmt: skip
     paths = []
-    paths += save_figure(F.fig1_lambda_vs_phi(fits), out_dir / "fig1_lambda_vs_phi", dpi)
-    paths += save_figure(F.fig2_event_triggered(fits), out_dir / "fig2_event_triggered", dpi)
-    paths += save_figure(F.fig3_contrast(chosen, drum), out_dir / "fig3_contrast", dpi)
-    paths += save_figure(F.fig4_chaos_map(chosen), out_dir / "fig4_chaos_map", dpi)
+    for name, draw in figures.items():
+        paths += save_figure(draw(), out_dir / name, dpi)
     _log(f"wrote {len(paths)} figure files to {out_dir}")
     return paths
