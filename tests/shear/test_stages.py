@@ -11,7 +11,8 @@ from granpipe.shear.stages import figures_stage, fits_stage, runs_stage, summary
 
 @pytest.fixture(scope="module")
 def two_points(tmp_path_factory):
-    """The tiny cell at φ = 0.80 and 0.82, two batches of one replica each, and fits."""
+    """The tiny cell at φ = 0.80 and 0.82, two batches of one replica each, and fits; a
+    variant with larger disks at the same φ, three replicas."""
     from tests.shear.conftest import shear_section
 
     cfg = shear_section(
@@ -21,9 +22,10 @@ def two_points(tmp_path_factory):
         ensemble={"n_replicas": 2, "batch_size": 1},
         fits={"aligned_before_s": 0.1, "aligned_after_s": 0.1, "bootstrap_resamples": 50},
     )
+    cfg["variants"] = {"big": {"physics": {"d_large": 1.4}, "ensemble": {"n_replicas": 3}}}
     root = tmp_path_factory.mktemp("shear")
     for point in layout.points(cfg):
-        runs = [root / layout.run_file(point, b) for b in layout.batches(cfg)]
+        runs = [root / layout.run_file(point, b) for b in layout.batches(cfg, point)]
         for b, path in enumerate(runs):
             runs_stage(layout.runs_params(cfg, point), b, path)
         fits_stage(layout.fits_params(cfg, point), runs, root / layout.fits_file(point))
@@ -32,8 +34,8 @@ def two_points(tmp_path_factory):
 
 def test_fits_refuse_another_points_batches_and_missing_replicas(two_points):
     cfg, root = two_points
-    a, b = layout.points(cfg)
-    theirs = [root / layout.run_file(b, x) for x in layout.batches(cfg)]
+    a, b = layout.points(cfg, "")
+    theirs = [root / layout.run_file(b, x) for x in layout.batches(cfg, b)]
     with pytest.raises(RunFileError, match="point"):
         fits_stage(layout.fits_params(cfg, a), theirs, root / "x.nc")
     ours = [root / layout.run_file(a, "0000")]
@@ -49,12 +51,21 @@ def test_summary_and_figures_from_every_point_and_only_those(two_points, tmp_pat
     text = out.read_text()
     assert "lambda_mean[phi=0.8]" in text and "lambda_mean[phi=0.82]" in text
     assert "phi_lambda_zero" in text and "phi_lambda_all_zero" in text
+    # the variant's points and its own transition rows, its files in a folder of its name
+    assert "lambda_mean[big/phi=0.82]" in text and "phi_lambda_all_zero[big]" in text
+    assert "phi_J_pressure[big]" in text and "phi_J_z_frictionless," in text
+    assert (root / "runs" / "big" / "phi=0.82" / "batch_0002.nc").exists()
     paths = figures_stage(layout.figures_params(cfg), fits, tmp_path / "figures")
     assert sorted(p.name for p in paths) == sorted(
         f"{n}.{e}" for n in layout.FIGURES for e in ("png", "pdf"))  # fmt: skip
     # a point's fits copied over the other's name, or one point missing, is refused
     copy = tmp_path / "fits" / f"{layout.points(cfg)[1]}.nc"
     copy.parent.mkdir()
+    big = tmp_path / "fits" / "big" / "phi=0.8.nc"  # the base's fits as the variant's
+    big.parent.mkdir()
+    shutil.copy(fits[0], big)
+    with pytest.raises(RunFileError, match="holds the fits of phi=0.8, not of big/phi=0.8"):
+        summary_stage(layout.summary_params(cfg), [*fits[1:], big], tmp_path / "s1.csv")
     shutil.copy(fits[0], copy)
     with pytest.raises(RunFileError, match="holds the fits of"):
         summary_stage(layout.summary_params(cfg), [fits[0], copy], tmp_path / "s2.csv")
@@ -71,7 +82,7 @@ def test_files_an_earlier_granpipe_wrote_are_named_with_the_rule_to_rerun(two_po
     cfg, root = two_points
     a = layout.points(cfg)[0]
     runs = []
-    for b in layout.batches(cfg):
+    for b in layout.batches(cfg, a):
         ds = read_dataset(root / layout.run_file(a, b)).drop_vars("lyapunov_all")
         runs.append(tmp_path / "runs" / f"batch_{b}.nc")
         runs[-1].parent.mkdir(exist_ok=True)

@@ -15,7 +15,6 @@ from granpipe.shear import layout as shear_layout
 SHEAR = config.get("shear", {})
 SHEAR_ON = enabled("shear")
 SHEAR_POINTS = shear_layout.points(SHEAR) if SHEAR_ON else []
-SHEAR_BATCHES = shear_layout.batches(SHEAR) if SHEAR_ON else []
 SHEAR_DRUM = [out("drum", drum_layout.fits_file(DRUM_REF))] if SHEAR_ON and enabled("drum") else []
 
 
@@ -25,17 +24,12 @@ wildcard_constraints:
     shear_batch=r"\d{4}",
 
 
-def shear_point(w):
-    """The point a job's wildcards name (``wide/phi=0.82`` or ``phi=0.82``)."""
-    return shear_layout.point_name(w.shear_phi, w.shear_group.rstrip("/"))
-
-
 rule shear_runs:
     """One batch of replicas at one packing fraction: preparation and record."""
     output:
         out("shear", "runs", "{shear_group}phi={shear_phi}", "batch_{shear_batch}.nc"),
     params:
-        json=lambda w: as_json(shear_layout.runs_params(SHEAR, shear_point(w))),
+        json=lambda w: as_json(shear_layout.runs_params(SHEAR, shear_layout.wildcards_point(w))),
     conda:
         "../envs/granpipe.yaml"
     log:
@@ -53,11 +47,12 @@ rule shear_fits:
     """A point's ⟨λ⟩, rearrangements, event-triggered λ̄ and lead time, correlations, the
     jamming measures, and the predictions of when and where the packing rearranges."""
     input:
-        lambda w: [out("shear", shear_layout.run_file(shear_point(w), b)) for b in SHEAR_BATCHES],
+        lambda w: [out("shear", shear_layout.run_file(shear_layout.wildcards_point(w), b))
+                   for b in shear_layout.batches(SHEAR, shear_layout.wildcards_point(w))],
     output:
         out("shear", "fits", "{shear_group}phi={shear_phi}.nc"),
     params:
-        json=lambda w: as_json(shear_layout.fits_params(SHEAR, shear_point(w))),
+        json=lambda w: as_json(shear_layout.fits_params(SHEAR, shear_layout.wildcards_point(w))),
     conda:
         "../envs/granpipe.yaml"
     log:

@@ -20,8 +20,8 @@ from collections.abc import Mapping
 
 from ..errors import ConfigError
 
-__all__ = ["check", "FIGURES", "point_name", "split_point", "variants", "phis", "points",
-           "batches", "run_file", "fits_file", "physics_for", "preparation_for",
+__all__ = ["check", "FIGURES", "point_name", "wildcards_point", "split_point", "variants",
+           "phis", "points", "n_replicas", "batches", "run_file", "fits_file", "physics_for", "preparation_for",
            "runs_params", "fits_params", "summary_params", "figures_params",
            "run_files"]  # fmt: skip
 
@@ -34,6 +34,11 @@ def point_name(phi: float | str, variant: str = "") -> str:
     text or a number)."""
     name = f"phi={float(phi):g}"
     return f"{variant}/{name}" if variant else name
+
+
+def wildcards_point(wildcards) -> str:
+    """The point a workflow job's ``shear_group``/``shear_phi`` wildcards name."""
+    return point_name(wildcards.shear_phi, wildcards.shear_group.rstrip("/"))
 
 
 def split_point(point: str) -> tuple[str, float]:
@@ -68,9 +73,16 @@ def points(cfg: Mapping, variant: str | None = None) -> list[str]:
     return [point_name(x, v) for v in names for x in phis(cfg, v)]
 
 
-def batches(cfg: Mapping) -> list[str]:
-    e = cfg["ensemble"]
-    return [f"{b:04d}" for b in range(-(-int(e["n_replicas"]) // int(e["batch_size"])))]
+def n_replicas(cfg: Mapping, point: str) -> int:
+    """Replicas of a point: the variant's ``ensemble.n_replicas``, default the base's."""
+    own = _overrides(cfg, split_point(point)[0], "ensemble")
+    return int(own.get("n_replicas", cfg["ensemble"]["n_replicas"]))
+
+
+def batches(cfg: Mapping, point: str) -> list[str]:
+    """The batches of a point (fixed ranges of ``ensemble.batch_size`` replica indices)."""
+    size = int(cfg["ensemble"]["batch_size"])
+    return [f"{b:04d}" for b in range(-(-n_replicas(cfg, point) // size))]
 
 
 def run_file(point: str, batch: str) -> str:
@@ -113,7 +125,8 @@ def check(cfg: Mapping) -> None:
 
     pr, fits = cfg["protocol"], cfg["fits"]
     e = cfg["ensemble"]  # the plan and each job's memory, counted before anything is built
-    jobs = len(points(cfg)) * -(-int(e["n_replicas"]) // int(e["batch_size"]))
+    size = int(e["batch_size"])
+    jobs = sum(-(-n_replicas(cfg, p) // size) for p in points(cfg))
     check_plan("shear.ensemble.n_replicas", jobs, "raise 'shear.ensemble.batch_size' or list "
                "fewer phi")  # fmt: skip
     blocks = float(pr["record_s"]) / float(pr["block_s"])
@@ -174,7 +187,7 @@ def fits_params(cfg: Mapping, point: str) -> dict:
 
     ev = cfg["events"]
     return {"point": point, "runs_config_hash": config_hash(runs_params(cfg, point)),
-            "n_replicas": cfg["ensemble"]["n_replicas"],
+            "n_replicas": n_replicas(cfg, point),
             "events": {k: ev[k] for k in ("min_changes", "quiet_s", "detector",
                                           "release_drop")},
             "fits": cfg["fits"]}  # fmt: skip
@@ -199,4 +212,4 @@ def figures_params(cfg: Mapping) -> dict:
 
 def run_files(cfg: Mapping) -> list[str]:
     """Every simulation output of the section (what ``granpipe status`` counts)."""
-    return [run_file(p, b) for p in points(cfg) for b in batches(cfg)]
+    return [run_file(p, b) for p in points(cfg) for b in batches(cfg, p)]

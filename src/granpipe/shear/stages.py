@@ -86,12 +86,14 @@ def fits_stage(params: Mapping, run_files: Sequence, out) -> Path:
 def _fits_files(params: Mapping, paths: Sequence) -> dict[str, xr.Dataset]:
     """Each point's fits file, once, computed from the subset ``params["points"]`` names."""
     want, seen = params["points"], {}
+    groups = {split_point(pt)[0] for pt in want} - {""}
     for p in paths:
         ds = read_dataset(p)
         point = str(ds.attrs.get("point"))
         if point not in want:
             raise RunFileError(f"{p} holds the fits of {point}, not a point of this config")
-        named = f"{Path(p).parent.name}/{Path(p).stem}" if "/" in point else Path(p).stem
+        folder = Path(p).parent.name  # a variant's points sit in a folder of its name
+        named = f"{folder}/{Path(p).stem}" if folder in groups else Path(p).stem
         if named != point:
             raise RunFileError(f"{p} holds the fits of {point}, not of {named}")
         if point in seen:
