@@ -21,8 +21,8 @@ from collections.abc import Mapping
 from ..errors import ConfigError
 
 __all__ = ["check", "FIGURES", "point_name", "wildcards_point", "split_point", "variants",
-           "phis", "points", "n_replicas", "batches", "run_file", "fits_file", "physics_for", "preparation_for",
-           "runs_params", "fits_params", "summary_params", "figures_params",
+           "phis", "points", "n_replicas", "batches", "run_file", "fits_file", "physics_for",
+           "preparation_for", "runs_params", "fits_params", "summary_params", "figures_params",
            "run_files"]  # fmt: skip
 
 FIGURES = ("fig1_lambda_vs_phi", "fig2_event_triggered", "fig3_contrast", "fig4_chaos_map",
