@@ -96,3 +96,31 @@ def test_files_an_earlier_granpipe_wrote_are_named_with_the_rule_to_rerun(two_po
     with pytest.raises(RunFileError, match=r"no 'lambda_all_replica_mean'.*--forcerun shear_fits"):
         summary_stage(params, [old], tmp_path / "s.csv")
     assert not (tmp_path / "x.nc").exists() and not (tmp_path / "s.csv").exists()
+
+
+def test_the_command_line_takes_every_stages_params_of_a_variants_point(two_points, tmp_path):
+    """What the workflow passes for a variant's point (``big/phi=0.82``) is accepted by each
+    command, and the command writes what the stage writes: the same replica, bit for bit."""
+    import json
+
+    from click.testing import CliRunner
+
+    from granpipe.io import read_dataset
+    from granpipe.shear.cli import cli
+
+    cfg, root = two_points
+    point = "big/phi=0.82"
+    runs = tmp_path / "batch_0001.nc"
+    call = CliRunner().invoke(cli, ["runs", "--params", json.dumps(layout.runs_params(cfg, point)),
+                                    "--batch", "1", "--out", str(runs)])  # fmt: skip
+    assert call.exit_code == 0, call.output
+    mine, theirs = read_dataset(runs), read_dataset(root / layout.run_file(point, "0001"))
+    assert (mine["lyapunov_all"].values == theirs["lyapunov_all"].values).all()
+    fits = [str(root / layout.fits_file(p)) for p in layout.points(cfg)]
+    for stage, params, where in (
+        ("summary", layout.summary_params(cfg), ["--out", str(tmp_path / "summary.csv")]),
+        ("figures", layout.figures_params(cfg), ["--out-dir", str(tmp_path / "figures")]),
+    ):
+        call = CliRunner().invoke(cli, [stage, "--params", json.dumps(params), *where, *fits])
+        assert call.exit_code == 0, call.output
+    assert "[big]" in (tmp_path / "summary.csv").read_text()

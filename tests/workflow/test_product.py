@@ -308,6 +308,28 @@ def test_adding_a_packing_fraction_plans_only_its_point(quick):
     assert added == {"shear_runs": n, "shear_fits": 1}, (before, jobs)
 
 
+def test_adding_a_variant_plans_only_its_points_with_its_own_replicas(quick):
+    """A variant of the shear cell (its own φ grid and replica count) adds only its
+    batches and fits beside the base section's, which stay done."""
+    workdir, base = quick
+    if "shear" not in studies(base):
+        pytest.skip("the shear study is not part of this scale")
+    one = copy.deepcopy(base)
+    one["studies"] = ["shear"]
+    two = copy.deepcopy(one)
+    two["shear"]["variants"] = {"ratio_1_4": {"physics": {"d_large": 1.4, "phi": [0.7, 0.75]},
+                                              "ensemble": {"n_replicas": 3}}}  # fmt: skip
+    before = planned_jobs(workdir, write_config(workdir, one, "base.yaml"))
+    jobs = planned_jobs(workdir, write_config(workdir, two, "variant.yaml"))
+    added = {k: jobs.get(k, 0) - before.get(k, 0) for k in set(jobs) | set(before)}
+    added = {k: v for k, v in added.items() if v}
+    for gathering in ("shear_summary", "shear_figures", "all"):
+        assert jobs.get(gathering) == 1
+        added.pop(gathering, None)
+    n = -(-3 // base["shear"]["ensemble"]["batch_size"])
+    assert added == {"shear_runs": 2 * n, "shear_fits": 2}, (before, jobs)
+
+
 def test_adding_a_wall_friction_plans_only_its_points(quick):
     """A second side-wall friction is its own set of initial states and points: only their
     jobs, and the fits and figures that gather every point, are planned."""

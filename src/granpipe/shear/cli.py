@@ -17,7 +17,7 @@ __all__ = ["cli"]
 _SECTIONS = ("physics", "preparation", "protocol", "fits")
 _HASHES = {"type": "object", "minProperties": 1, "additionalProperties": {"type": "string"}}
 _EXTRA = {
-    "point": {"type": "string", "pattern": "^phi=[0-9.e+-]+$"},
+    "point": {"type": "string", "pattern": "^([A-Za-z][A-Za-z0-9_]*/)?phi=[0-9.e+-]+$"},
     "events": {"type": "object"},
     "batch_size": {"$ref": "#/x-study/properties/ensemble/properties/batch_size"},
     "n_replicas": {"$ref": "#/x-study/properties/ensemble/properties/n_replicas"},
