@@ -8,7 +8,8 @@
   the count of events.
 * :func:`fig3_contrast` — the drum paper's contrast: the shear cell's event-triggered λ̄
   beside the drum's λ̄ aligned on each pile's own onset of sustained flow, same law, same
-  analysis (the drum's fits file, when the scale runs the drum).
+  analysis (the drum's fits file, when the scale runs the drum), with what decides
+  Ref. [20]'s claims written on it: φ* against φ_J, and the when-prediction's area.
 * :func:`fig4_chaos_map` — where the chaos lives: the disks coloured by |δu_i| beside the
   same disks coloured by speed (the drum paper's Fig. 2 style), one replica.
 * :func:`fig5_jamming` — is the transition the cell's jamming point: the maximal
@@ -97,13 +98,27 @@ def fig2_event_triggered(fits: dict[str, xr.Dataset], min_events: int = 100) -> 
     return fig
 
 
-def fig3_contrast(shear: xr.Dataset, drum: xr.Dataset | None) -> plt.Figure:
-    fig, a = plt.subplots(figsize=(6.5, 4))
+def _interval(row) -> str:
+    """``0.883 [0.881, 0.885]`` of a FitResult, ``—`` when it has no value."""
+    if row is None or not np.isfinite(row.value):
+        return "—"
+    ci = f" [{row.ci_low:.3f}, {row.ci_high:.3f}]" if np.isfinite(row.ci_low) else ""
+    return f"{row.value:.3f}{ci}"
+
+
+def fig3_contrast(shear: xr.Dataset, drum: xr.Dataset | None, transitions: list) -> plt.Figure:
+    """The shear cell's λ̄ (over S, solid; the whole vector's rate, dashed) aligned on its
+    rearrangements beside the drum's aligned on each pile's flow onset, and what decides
+    Ref. [20]'s claims: φ* against φ_J, and how well λ_max before a moment predicts an
+    event (the area under the ROC curve at this φ)."""
+    fig, a = plt.subplots(figsize=(6.5, 4.4))
     lead, top = _v(shear, "lead_time"), _v(shear, "lambda_peak_time")
     crossing = f"lead {lead:.2f} s" if np.isfinite(lead) else "never > 0"
     a.plot(shear["tau"], shear["aligned_lambda_bar"], color="tab:purple",
            label=f"shear cell ({shear.attrs['point']}), aligned on rearrangements: "
            f"{crossing}, largest at {top:+.2f} s")  # fmt: skip
+    a.plot(shear["tau_sample"], shear["aligned_lambda_all_bar"], color="tab:purple", ls="--",
+           lw=0.9, label="shear cell, the whole tangent vector's rate λ_max")  # fmt: skip
     if drum is not None and "aligned_lambda_bar_onset" in drum:
         lag = _v(drum, "onset_lag_aligned")
         a.plot(drum["tau_onset"], drum["aligned_lambda_bar_onset"], color="tab:blue",
@@ -113,7 +128,16 @@ def fig3_contrast(shear: xr.Dataset, drum: xr.Dataset | None) -> plt.Figure:
     a.axvline(0.0, color="k", lw=0.8, ls=":")
     a.set(xlabel="time after the event [s]", ylabel="λ̄ [1/t0]",
           title="does λ lead the event (shear) or lag it (drum)?")  # fmt: skip
-    a.legend(fontsize=7)
+    a.legend(fontsize=7, loc="upper left")
+    rows = {r.quantity: r for r in transitions}
+    auc = (_v(shear, "when_auc_lambda_all"), _v(shear, "when_auc_lambda_all_ci_low"),
+           _v(shear, "when_auc_lambda_all_ci_high"))  # fmt: skip
+    a.text(0.99, 0.02, f"λ_max changes sign at φ* = {_interval(rows.get('phi_lambda_all_zero'))}\n"
+           f"z = 4 at φ_J = {_interval(rows.get('phi_J_z_frictionless'))}; pressure leaves 0 "
+           f"at {_interval(rows.get('phi_J_pressure'))}\n"
+           f"when, at {shear.attrs['point']}: AUC of λ_max {auc[0]:.2f} [{auc[1]:.2f}, "
+           f"{auc[2]:.2f}] (0.5: none)", transform=a.transAxes, ha="right", va="bottom",
+           fontsize=7)  # fmt: skip
     fig.tight_layout()
     return fig
 

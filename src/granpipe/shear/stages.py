@@ -166,7 +166,7 @@ def figures_stage(params: Mapping, fits_files: Sequence, out_dir, drum_fits=None
     dpi = int(params["dpi"])
     figures = {"fig1_lambda_vs_phi": lambda: F.fig1_lambda_vs_phi(fits),
                "fig2_event_triggered": lambda: F.fig2_event_triggered(fits),
-               "fig3_contrast": lambda: F.fig3_contrast(chosen, drum),
+               "fig3_contrast": lambda: F.fig3_contrast(chosen, drum, trans[""]),
                "fig4_chaos_map": lambda: F.fig4_chaos_map(chosen),
                "fig5_jamming": lambda: F.fig5_jamming(fits, trans[""]),
                "fig6_prediction": lambda: F.fig6_prediction(fits),
