@@ -259,8 +259,9 @@ def where_prediction(ds: xr.Dataset, idx: list, cfg) -> list[FitResult]:
     """Does the Lyapunov vector say *where* an event happens?
 
     For each event at sample e, the disks that rearrange are those with a changed
-    neighbour edge in it; the score of a disk is its |δu_i| ``where_lead_s`` before the
-    sample interval starts (baseline: its speed |v_i| then). Per event the precision at
+    neighbour edge in it (between samples e − 1 and e); the score of a disk is its |δu_i|
+    at the sample ``where_lead_s`` before e (whole samples, at least one: the interval's
+    start, before any of its edges changed), baseline its speed |v_i| then. Per event the precision at
     the event's own size (:func:`~granpipe.analysis.prediction.precision_at_size`; a
     random choice gives the set's share) and the area under the ROC curve over the disks;
     the mean over each replica's events, then over replicas, bootstrap over replicas.
@@ -298,8 +299,8 @@ def where_prediction(ds: xr.Dataset, idx: list, cfg) -> list[FitResult]:
     rows = []
     for k, x in per_rep.items():
         res = _over_replicas(f"where_{k}", np.asarray(x), "1", f"{what[k]}, "
-                             f"{lead * float(ds.attrs['sample_s']):g} s before the event's "
-                             "sample interval; mean over each replica's events, then over "
+                             f"at the sample {lead * float(ds.attrs['sample_s']):g} s before "
+                             "the event's; mean over each replica's events, then over "
                              "replicas", cfg)  # fmt: skip
         rows.append(dataclasses.replace(res, n=n_ev))
     return rows
