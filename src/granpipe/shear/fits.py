@@ -261,9 +261,10 @@ def where_prediction(ds: xr.Dataset, idx: list, cfg) -> list[FitResult]:
     For each event at sample e, the disks that rearrange are those with a changed
     neighbour edge in it (between samples e − 1 and e); the score of a disk is its |δu_i|
     at the sample ``where_lead_s`` before e (whole samples, at least one: the interval's
-    start, before any of its edges changed), baseline its speed |v_i| then. Per event the precision at
-    the event's own size (:func:`~granpipe.analysis.prediction.precision_at_size`; a
-    random choice gives the set's share) and the area under the ROC curve over the disks;
+    start, before any of its edges changed), baseline its speed |v_i| then. Per event the
+    precision at the event's own size
+    (:func:`~granpipe.analysis.prediction.precision_at_size`; a random choice gives the
+    set's share) and the area under the ROC curve over the disks;
     the mean over each replica's events, then over replicas, bootstrap over replicas.
     """
     lead = max(1, round(float(cfg["where_lead_s"]) / float(ds.attrs["sample_s"])))
