@@ -276,11 +276,13 @@ _NOT_SEEDED = (
     ("physics", "friction"),
     ("physics", "k_t"),
     ("protocol", "pile_sample_s"),
+    ("protocol", "disk_record"),
 )
-"""Keys left out of the seed: the bad-state bound and the pile's sampling (they never change
-a trajectory), and the friction law, so that replica k of a static-friction point starts
-from the same placement and tangent vector as replica k of its viscous twin (paired
-replicas: the difference between the laws is measured on common random numbers)."""
+"""Keys left out of the seed: the bad-state bound, the pile's sampling and its per-disk
+record (they never change a trajectory), and the friction law, so that replica k of a
+static-friction point starts from the same placement and tangent vector as replica k of
+its viscous twin (paired replicas: the difference between the laws is measured on common
+random numbers)."""
 
 
 @functools.lru_cache(maxsize=4)
