@@ -403,6 +403,11 @@ BYTES_PER_BLOCK = 256
 """A generous bound on one replica's recorded bytes per block (block means of λ, V, the
 pile's tilt and centroid, counts), for the memory check of :func:`check`."""
 
+BYTES_PER_DISK_SAMPLE = 16
+"""One replica's recorded bytes per mobile disk and pile sample of the onset window with
+``protocol.disk_record`` (|δu_i| and |v_i| as float32, held twice while a batch's arrays
+are stacked), for the memory check of :func:`check`."""
+
 BYTES_PER_DISK = 4096
 """A generous bound on one replica's memory per disk (state rows, neighbour and pair
 lists, pair buffers: ``granpipe.engine.layout``), for the memory check of :func:`check`."""
@@ -467,9 +472,13 @@ def check(section: Mapping) -> dict:
         st = steps(p)  # times shorter than a step, a pre-rotation of no step
         # a batch's block records (λ, V and the pile's state per block, a few rows each)
         blocks = (st.onset + st.decay + st.max_rotation) // st.block
+        disks = 0  # and the per-disk record of the onset window's pile samples
+        if p["protocol"]["disk_record"]:
+            n_mobile = int(p["physics"]["n_small"]) + int(p["physics"]["n_large"])
+            disks = BYTES_PER_DISK_SAMPLE * (st.onset // st.sample + 1) * n_mobile
         check_memory(
             "drum.protocol.onset_window_s", p["protocol"]["onset_window_s"],
-            BYTES_PER_BLOCK * blocks * int(p["ensemble"]["batch_size"]),
+            (BYTES_PER_BLOCK * blocks + disks) * int(p["ensemble"]["batch_size"]),
         )  # fmt: skip
     _check_drum(sec)
     return sec
