@@ -472,15 +472,20 @@ def check(section: Mapping) -> dict:
         st = steps(p)  # times shorter than a step, a pre-rotation of no step
         # a batch's block records (λ, V and the pile's state per block, a few rows each)
         blocks = (st.onset + st.decay + st.max_rotation) // st.block
-        disks = 0  # and the per-disk record of the onset window's pile samples
-        if p["protocol"]["disk_record"]:
-            n_mobile = int(p["physics"]["n_small"]) + int(p["physics"]["n_large"])
-            disks = BYTES_PER_DISK_SAMPLE * (st.onset // st.sample + 1) * n_mobile
         check_memory(
             "drum.protocol.onset_window_s", p["protocol"]["onset_window_s"],
-            (BYTES_PER_BLOCK * blocks + disks) * int(p["ensemble"]["batch_size"]),
+            BYTES_PER_BLOCK * blocks * int(p["ensemble"]["batch_size"]),
         )  # fmt: skip
     _check_drum(sec)
+    for p in pts:  # the per-disk record of the onset window's pile samples (after the disks)
+        if p["protocol"]["disk_record"]:
+            st = steps(p)
+            n_mobile = int(p["physics"]["n_small"]) + int(p["physics"]["n_large"])
+            check_memory(
+                "drum.protocol.disk_record", True,
+                BYTES_PER_DISK_SAMPLE * (st.onset // st.sample + 1) * n_mobile
+                * int(p["ensemble"]["batch_size"]),
+            )  # fmt: skip
     return sec
 
 
