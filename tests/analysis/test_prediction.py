@@ -12,6 +12,7 @@ from granpipe.analysis.bootstrap import resample_counts
 from granpipe.analysis.prediction import (
     bootstrap_auc,
     event_follows,
+    locate,
     precision_at_size,
     roc_auc,
     roc_curve,
@@ -82,6 +83,22 @@ def test_precision_at_the_sets_size():
     random = [precision_at_size(rng.random(100), members) for _ in range(4000)]
     assert np.mean(random) == pytest.approx(0.03, abs=0.01)  # the members' share
     assert math.isnan(precision_at_size(score, np.zeros(100, bool)))
+
+
+def test_locate_scores_one_event_by_every_score():
+    rng = np.random.default_rng(5)
+    members = np.zeros(200, bool)
+    members[rng.choice(200, 20, replace=False)] = True
+    perfect = members + 0.1 * rng.random(200)
+    noise = rng.random(200)
+    got = locate({"du": perfect, "speed": noise}, members)
+    assert set(got) == {"precision_du", "precision_speed", "precision_random", "auc_du",
+                        "auc_speed", "event_size"}  # fmt: skip
+    assert got["precision_du"] == 1.0 and got["auc_du"] == 1.0
+    assert got["precision_speed"] == precision_at_size(noise, members)
+    assert got["auc_speed"] == roc_auc(noise, members)
+    assert got["precision_random"] == pytest.approx(0.1) and got["event_size"] == 20
+    assert locate({"du": perfect}, np.zeros(200, bool)) is None
 
 
 def test_trailing_mean_and_event_follows():

@@ -67,8 +67,16 @@ def synthetic_runs(tmp_path, *, n_batches=3, batch_size=4, vertex=3.0, zero_on=1
 RIGID = 0.17  # d_s/t0, V of rigid rotation (constant here)
 
 
+def _disk_fields(disks, r, p_on, flow):
+    if disks is None:
+        return {}
+    du, v = disks(r, p_on, flow)
+    return {"disk_du_onset": np.asarray(du, np.float32),
+            "disk_speed_onset": np.asarray(v, np.float32)}  # fmt: skip
+
+
 def synthetic_pile_runs(tmp_path, flows, *, stops=None, lag_on=3.0, lag_de=1.5, noise=0.3,
-                        batch_size=4, onset_s=40.0, seed=2):  # fmt: skip
+                        batch_size=4, onset_s=40.0, seed=2, disks=None):  # fmt: skip
     """Run files with the pile's samples, each replica flowing from its own ``flows[r]``
     [s] (NaN: never in the window) and, in the decay window, stopping its flow
     ``stops[r]`` s after the drum's stop (default 1.0 s).
@@ -78,6 +86,9 @@ def synthetic_pile_runs(tmp_path, flows, *, stops=None, lag_on=3.0, lag_de=1.5, 
     rigid until the flow stops, then 0.5 ×; λ a falling line through zero ``lag_de`` s
     after the flow stop. So the aligned λ̄ crosses zero at ``lag_on`` (``lag_de``) in
     every replica, and the flow tilt is 1 + 0.35 t_flow.
+
+    ``disks(r, p_on, flow)`` -> (|δu_i|, |v_i|), each (S, N), gives a replica's per-disk
+    record at the onset window's pile samples ``p_on`` (S,) [s] (none without).
     """
     flows = np.asarray(flows, dtype=np.float64)
     stops = np.full(len(flows), 1.0) if stops is None else np.asarray(stops, dtype=np.float64)
@@ -114,6 +125,7 @@ def synthetic_pile_runs(tmp_path, flows, *, stops=None, lag_on=3.0, lag_de=1.5, 
                     continuous_time=min(f, onset_s), decay_start=onset_s, wall_time=1.0,
                     n_steps=10, pile_onset=pile_on, pile_seconds_onset=p_on,
                     pile_decay=pile_de, pile_seconds_decay=p_de,
+                    **_disk_fields(disks, r, p_on, flows[r]),
                 )
             )  # fmt: skip
         paths.append(_write_batch(recs, st, d, tmp_path, b))

@@ -399,6 +399,90 @@ def test_aligned_lag_with_batch_units_agrees_with_replica_units(pile_runs):
     assert np.isfinite(rb["onset_lag_aligned"].ci_low)
 
 
+# ------------------------------------------------------ where the avalanche starts
+N_DISKS = 100
+
+
+def _flowing_disks(perfect: bool, seed: int = 7):
+    """Per-disk records: replica r has 10 + r disks (at random) that start to flow, at
+    0.1 d_s/t0 from the end of the onset's first 0.1 s block on (0.001-0.01 before, and
+    for the others); |δu_i| uniform in [0, 0.5], plus 0.5 for those disks before the
+    onset when ``perfect``."""
+
+    def disks(r, p_on, flow):
+        rng = np.random.default_rng([seed, r])
+        members = np.zeros(N_DISKS, bool)
+        members[rng.choice(N_DISKS, 10 + r, replace=False)] = True
+        v = rng.uniform(0.001, 0.01, (len(p_on), N_DISKS))
+        after = p_on >= flow + 0.1 - 1e-9 if np.isfinite(flow) else np.zeros(len(p_on), bool)
+        v[np.ix_(after, members)] = 0.1
+        du = rng.uniform(0.0, 0.5, (len(p_on), N_DISKS))
+        if perfect:
+            du[np.ix_(~after, members)] += 0.5
+        return du, v
+
+    return disks
+
+
+def test_where_the_flow_starts_is_found_by_a_perfect_score(tmp_path):
+    paths = synthetic_pile_runs(tmp_path, FLOWS, noise=0.05, disks=_flowing_disks(True))
+    r, _ = _pile_fits(paths)
+    share = np.mean((10 + np.arange(12)) / N_DISKS)
+    assert r["where_precision_du"].value == 1.0 and r["where_auc_du"].value == 1.0
+    assert r["where_precision_du"].n == 12 and r["where_precision_du"].note == ""
+    assert r["where_event_size"].value == pytest.approx(10 + np.mean(np.arange(12)))
+    assert r["where_precision_random"].value == pytest.approx(share)
+    # the speeds before the onset say nothing: about the members' share, an area near 1/2
+    assert r["where_precision_speed"].value == pytest.approx(share, abs=0.1)
+    assert r["where_auc_speed"].value == pytest.approx(0.5, abs=0.1)
+    assert np.isnan(r["where_precision_du"].fit_error) or r["where_precision_du"].fit_error == 0
+    s = r["where_precision_speed"]
+    assert s.ci_low <= s.value <= s.ci_high and s.ci_high > s.ci_low
+
+
+def test_random_scores_give_the_share_of_the_disks_that_flow(tmp_path):
+    paths = synthetic_pile_runs(tmp_path, FLOWS, noise=0.05, disks=_flowing_disks(False))
+    r, _ = _pile_fits(paths)
+    share = np.mean((10 + np.arange(12)) / N_DISKS)
+    assert r["where_precision_du"].value == pytest.approx(share, abs=0.1)
+    assert r["where_auc_du"].value == pytest.approx(0.5, abs=0.1)
+    # an onset sample at the flow's start (its first block not yet over) would find none
+    assert r["where_event_size"].value == pytest.approx(10 + np.mean(np.arange(12)))
+
+
+def test_where_scores_the_onset_sample_after_the_first_flowing_block():
+    from granpipe.drum.fits import where_flow_starts
+
+    tp = np.arange(11) * 0.1
+    v = np.full((1, 11, 4), 0.005)
+    v[0, 6:, :2] = 0.1  # disks 0 and 1 flow from 0.6 s on
+    du = np.tile(np.array([0.9, 0.8, 0.1, 0.2]), (1, 11, 1))
+    kw = dict(block_s=0.1, lead_s=0.1, flow_speed=0.015)
+    w = where_flow_starts(tp, np.array([0.5]), du, v, **kw)
+    assert w["onset_sample"][0] == 6 and w["event_size"][0] == 2
+    assert w["precision_du"][0] == 1.0 and w["precision_random"][0] == 0.5
+    # rising speeds: the same disks; no onset, or one too early for the lead: no event
+    assert where_flow_starts(tp, np.array([0.5]), du, v, members="rise", **kw)["event_size"][0] == 2
+    w = where_flow_starts(tp, np.array([np.nan]), du, v, **{**kw, "lead_s": 0.3})
+    assert np.isnan(w["precision_du"][0]) and w["onset_sample"][0] == -1
+    assert np.isnan(where_flow_starts(tp, np.array([0.0]), du, v, **{**kw, "lead_s": 0.2})
+                    ["precision_du"][0])  # fmt: skip
+
+
+def test_where_rows_are_empty_with_a_note_when_no_replica_flows(tmp_path):
+    flows = np.full(4, np.nan)
+    paths = synthetic_pile_runs(tmp_path, flows, noise=0.05, disks=_flowing_disks(True))
+    r, _ = _pile_fits(paths)
+    for k in ("precision_du", "precision_speed", "precision_random", "auc_du", "auc_speed",
+              "event_size"):  # fmt: skip
+        row = r[f"where_{k}"]
+        assert np.isnan(row.value) and row.n == 0 and "no replica has an onset" in row.note
+    # run files without the per-disk record: the rows say so
+    (tmp_path / "off").mkdir()
+    r, _ = _pile_fits(synthetic_pile_runs(tmp_path / "off", FLOWS[:4], noise=0.05))
+    assert np.isnan(r["where_auc_du"].value) and "disk_record false" in r["where_auc_du"].note
+
+
 # ------------------------------------------- fit tests that can catch a bias (absolute)
 def _sigma_zero(noise, slope, replicas, window):
     """Standard error of the zero of a line fitted to the ensemble mean of ``replicas``

@@ -99,6 +99,35 @@ def test_replica_by_hand_equals_the_workflow(tiny, batch2):
         np.testing.assert_array_equal(ds[name].values[0], run[name].sel(replica=1).values)
 
 
+def test_per_disk_record_of_the_onset_window(tiny, batch2):
+    """|δu_i| and |v_i| of every mobile disk at the onset window's pile samples, float32;
+    the first sample is t = 0, where replica 0's snapshot holds the same disks."""
+    _, run = batch2
+    S = run.sizes["pile_onset"]
+    for name, units in (("disk_du_onset", "1"), ("disk_speed_onset", "d_s/t0")):
+        var = run[name]
+        assert var.dims == ("replica", "pile_onset", "particle") and var.shape == (2, S, 46)
+        assert var.dtype == np.float32 and var.attrs["units"] == units
+        assert var.attrs["long_name"] and np.isfinite(var.values).all()
+    du, v = run["disk_du_onset"].values, run["disk_speed_onset"].values
+    np.testing.assert_allclose(du.max(axis=-1), 1.0, rtol=1e-6)  # over the largest
+    assert (du >= 0).all() and (v >= 0).all()
+    snap_v = np.hypot(*run["snapshot_velocity"].values[0].T)
+    np.testing.assert_array_equal(v[0, 0], snap_v.astype(np.float32))
+    np.testing.assert_array_equal(du[0, 0], run["snapshot_du"].values[0].astype(np.float32))
+
+
+def test_without_the_per_disk_record_the_same_bits_and_no_disk_arrays(tiny, batch2):
+    _, run = batch2
+    off = {**tiny, "protocol": {**tiny["protocol"], "disk_record": False}}
+    assert seed_physics(off) == seed_physics(tiny)
+    ds = run_replica(off, 0, snapshots=False)
+    assert not [k for k in ds.data_vars if k.startswith("disk_")]
+    for name in ("lambda_onset", "speed_onset", "lambda_decay", "speed_decay", "tilt_onset",
+                 "speed_lyapunov_correlation_onset", "continuous_time"):  # fmt: skip
+        np.testing.assert_array_equal(ds[name].values[0], run[name].sel(replica=0).values)
+
+
 def test_blowup_names_study_point_replica_seed_and_step(tiny):
     # a contact time of 3e-4 t0, a quarter of the step: the integration blows up
     bad = {**tiny, "physics": {**tiny["physics"], "k_n": 1.0e8}}

@@ -12,7 +12,9 @@ docs/shear.md, "Predicting rearrangements"):
 * *where* — a score per disk (|δu_i| before the event) against the set of disks that
   rearrange: :func:`precision_at_size` (the fraction of the set among the highest
   scores, as many as the set holds; a random score gives the set's share of the disks
-  on average) and :func:`roc_auc` over the disks.
+  on average) and :func:`roc_auc` over the disks, both for several scores of one event
+  at once by :func:`locate` (the shear cell's rearrangements, the drum's avalanche
+  onsets).
 
 The area under the ROC curve is the Mann–Whitney probability that a positive scores
 above a negative (ties count one half): 0.5 for a score unrelated to the label, 1 for
@@ -23,15 +25,15 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from scipy.stats import rankdata
 
 from .bootstrap import BootstrapResult, resample_counts
 
-__all__ = ["roc_curve", "roc_auc", "bootstrap_auc", "precision_at_size", "trailing_mean",
-           "event_follows"]  # fmt: skip
+__all__ = ["roc_curve", "roc_auc", "bootstrap_auc", "precision_at_size", "locate",
+           "trailing_mean", "event_follows"]  # fmt: skip
 
 
 def _finite(scores, labels):
@@ -129,6 +131,31 @@ def precision_at_size(scores: np.ndarray, members: np.ndarray) -> float:
         return math.nan
     top = np.argsort(-np.where(np.isfinite(s), s, -np.inf), kind="stable")[:k]
     return float(m[top].mean())
+
+
+def locate(scores: Mapping[str, np.ndarray], members: np.ndarray) -> dict[str, float] | None:
+    """How well each score says *where* one event happens.
+
+    Parameters
+    ----------
+    scores : name -> (n,) float, one score per disk (NaN left out of the area)
+    members : (n,) bool, the disks of the event (the positives)
+
+    Returns
+    -------
+    ``{"precision_<name>", "auc_<name>"}`` for every score (:func:`precision_at_size`,
+    :func:`roc_auc`), ``"precision_random"`` (the members' share of the disks: a random
+    choice's expected precision) and ``"event_size"`` (the members); None when the
+    event has no member.
+    """
+    m = np.asarray(members, dtype=bool)
+    if not m.any():
+        return None
+    out = {f"precision_{k}": precision_at_size(s, m) for k, s in scores.items()}
+    out["precision_random"] = float(m.mean())
+    out.update({f"auc_{k}": roc_auc(s, m) for k, s in scores.items()})
+    out["event_size"] = int(m.sum())
+    return out
 
 
 def trailing_mean(series: np.ndarray, window: int) -> np.ndarray:

@@ -77,6 +77,8 @@ __all__ = [
     "PileRecords",
     "load_pile",
     "pile_fits",
+    "WHERE",
+    "where_flow_starts",
 ]
 
 WINDOWS = ("onset", "decay")
@@ -1016,6 +1018,62 @@ def _interp_rows(x_new, x, Y) -> np.ndarray:
     return out
 
 
+WHERE = ("precision_du", "precision_speed", "precision_random", "auc_du", "auc_speed",
+         "event_size")  # fmt: skip
+"""The ``where_<key>`` rows of :func:`where_flow_starts` (docs/drum.md, "Where the
+avalanche starts")."""
+
+
+def where_flow_starts(pile_seconds, flow_onset, du, speed, *, block_s: float, lead_s: float,
+                      flow_speed: float, members: str = "speed") -> dict:  # fmt: skip
+    """Per replica: does |δu_i| before its pile's onset say which disks start to flow?
+
+    The onset sample is the pile sample at the end of the onset's first coarse block
+    (``flow_onset + block_s``, the pile flows then; the first sample after half a sample
+    before it, as the samples and blocks need not share the last bits). The disks that start
+    to flow are those with |v_i| above ``flow_speed`` there (``members="speed"``) or
+    whose speed rose by more than ``flow_speed`` since the scoring sample (``"rise"``).
+    Each disk is scored by its |δu_i| ``lead_s`` before the onset sample (whole pile
+    samples, at least one; baseline: its |v_i| then), and the event is scored by
+    :func:`granpipe.analysis.prediction.locate`.
+
+    Parameters
+    ----------
+    pile_seconds : (S,) [s], the pile's samples after t = 0
+    flow_onset : (R,) [s], each replica's onset of sustained flow (NaN: none)
+    du : (R, S, N) [1], |δu_i| over its largest; speed : (R, S, N) [d_s/t0], |v_i|
+    block_s : [s], the coarse block of the flow onset (``fits.flow_block_s``)
+    lead_s : [s]; flow_speed : [d_s/t0]
+
+    Returns
+    -------
+    ``{key: (R,) float for key in WHERE}`` and ``"onset_sample"`` (R,) int (−1 where
+    none); NaN where a replica has no onset, its onset sample is not ``lead_s`` after
+    the window's start, or no disk starts to flow.
+    """
+    from ..analysis.prediction import locate
+
+    tp = np.asarray(pile_seconds, dtype=np.float64)
+    dt = float(np.median(np.diff(tp))) if len(tp) > 1 else math.inf
+    lead = max(1, int(round(float(lead_s) / dt))) if np.isfinite(dt) else 1
+    R = len(flow_onset)
+    out = {k: np.full(R, np.nan) for k in WHERE}
+    out["onset_sample"] = np.full(R, -1, np.int64)
+    for r, t in enumerate(np.asarray(flow_onset, dtype=np.float64)):
+        if not np.isfinite(t):
+            continue
+        e = int(np.searchsorted(tp, t + float(block_s) - 0.5 * dt))  # the nearest at or after
+        if e >= len(tp) or e < lead:
+            continue
+        v_e, v_s = (np.asarray(speed[r, k], dtype=np.float64) for k in (e, e - lead))
+        flows = (v_e - v_s if members == "rise" else v_e) > float(flow_speed)
+        got = locate({"du": du[r, e - lead], "speed": v_s}, flows & np.isfinite(v_e))
+        out["onset_sample"][r] = e
+        for k, x in (got or {}).items():
+            out[k][r] = x
+    return out
+
+
 def load_pile(
     paths: Sequence[str | os.PathLike],
     fits_cfg: Mapping,
@@ -1066,6 +1124,19 @@ def load_pile(
                     event = ev["flow_onset"]
                     out.update(ev)
                     out["tilt_t0"] = tilt_p[:, 0]
+                    out["where_recorded"] = np.full(len(ok), "disk_du_onset" in ds)
+                    if "disk_du_onset" in ds:
+                        wh = where_flow_starts(
+                            tp, event, ds["disk_du_onset"].values[ok],
+                            ds["disk_speed_onset"].values[ok],
+                            block_s=args["block"] * block_s, lead_s=float(cfg["where_lead_s"]),
+                            flow_speed=float(cfg["where_flow_speed"]),
+                            members=cfg["where_members"],
+                        )  # fmt: skip
+                    else:
+                        wh = {k: np.full(len(ok), np.nan) for k in WHERE}
+                        wh["onset_sample"] = np.full(len(ok), -1, np.int64)
+                    out.update({f"where_{k}": x for k, x in wh.items()})
                     for k in ("startup_end", "first_burst", "flow_onset"):
                         out[f"{k}_tilt"] = np.array([
                             np.interp(e, tp, y) if np.isfinite(e) else np.nan
@@ -1181,6 +1252,63 @@ def _event_results(pile: PileRecords, cfg: Mapping, stop: float) -> list[FitResu
     return out
 
 
+_WHERE_ROWS = {
+    "precision_du": "fraction of the disks that start to flow among those with the largest "
+                    "|δu_i|, as many as start to flow",
+    "precision_speed": "the same with the largest speeds |v_i| (baseline)",
+    "precision_random": "the share of the mobile disks that start to flow (a random choice's "
+                        "expected precision)",
+    "auc_du": "area under the ROC curve of |δu_i| over the mobile disks, those that start to "
+              "flow positive",
+    "auc_speed": "the same of |v_i| (baseline)",
+    "event_size": "mobile disks that start to flow at the onset",
+}  # fmt: skip
+
+
+def _where_rows(pile: PileRecords, cfg: Mapping) -> list[FitResult]:
+    """The ``where_*`` rows (:data:`WHERE`): each replica's one onset scored by
+    :func:`where_flow_starts`, the mean over the replicas that have it, its standard error
+    and a joint percentile bootstrap over those replicas; NaN with a note where none
+    has (no replica flows inside the onset window, or no per-disk record)."""
+    ev = pile.events
+    R = len(ev["flow_onset"])
+    X = np.stack([np.asarray(ev[f"where_{k}"], dtype=np.float64) for k in WHERE], -1)
+    has = np.isfinite(X[:, 0])
+    n = int(has.sum())
+    note = ""
+    if not np.all(ev["where_recorded"]):
+        note = ("the run files hold no per-disk record (drum.protocol.disk_record false) for "
+                f"{int((~ev['where_recorded']).sum())} of {R} replicas")  # fmt: skip
+    if n == 0:
+        n_flow = int(np.isfinite(ev["flow_onset"]).sum())
+        none = (f"no replica has an onset to score ({n_flow} of {R} reach sustained flow "
+                "inside the onset window)")  # fmt: skip
+        note = f"{note}; {none}" if note else none
+    lead = float(cfg["where_lead_s"])
+    who = (f"|v_i| above {cfg['where_flow_speed']:g} d_s/t0 at the onset sample"
+           if cfg["where_members"] == "speed" else
+           f"|v_i| risen by more than {cfg['where_flow_speed']:g} d_s/t0 since the scores' "
+           "sample")  # fmt: skip
+    boot = None
+    if n > 1 and int(cfg["bootstrap_resamples"]) > 0:
+        boot = bootstrap_replicas(X[has], lambda m: m, level=float(cfg["confidence"]),
+                                  n_resamples=int(cfg["bootstrap_resamples"]),
+                                  seed=int(cfg["seed"]))  # fmt: skip
+    rows = []
+    for j, k in enumerate(WHERE):
+        x = X[has, j]
+        value = float(np.nanmean(x)) if n else math.nan
+        fin = np.isfinite(x)
+        se = float(np.std(x[fin], ddof=1) / math.sqrt(fin.sum())) if fin.sum() > 1 else math.nan
+        res = FitResult(f"where_{k}", value, se, "1", n=n, note=note,
+                        method=f"{_WHERE_ROWS[k]} (those with {who}); scores "
+                        f"{lead:g} s before the onset sample (the first pile sample after the "
+                        "first coarse block of each replica's own onset of sustained flow); "
+                        f"mean over the {n} of {R} replicas with an onset")  # fmt: skip
+        rows.append(res.with_ci(boot, j) if boot is not None else res)
+    return rows
+
+
 def _aligned_analysis(pile: PileRecords, w: str, cfg: Mapping, q: int, hold: int):
     """The aligned average of one window, its λ̄ and the lag from the event to λ̄'s first
     lasting zero crossing (upward at the onset, downward at the decay), with the aligned
@@ -1282,7 +1410,10 @@ def pile_fits(pile: PileRecords, ens: xr.Dataset, fits_cfg: Mapping,
         spread between replicas), ``flow_onset_reached`` (fraction of the replicas),
         ``decay_flow_stop_time`` (after the drum's stop), ``onset_lag_aligned`` and
         ``decay_lag_aligned`` [s] with the aligned tilt at λ̄'s crossing (``_tilt``),
-        ``correlation_onset``/``correlation_decay`` (where the run files record them)
+        ``correlation_onset``/``correlation_decay`` (where the run files record them),
+        ``where_precision_du``, ``_speed``, ``_random``, ``where_auc_du``, ``_speed``,
+        ``where_event_size`` (:func:`where_flow_starts`; NaN with a note where no replica
+        has an onset to score)
     curves : Dataset with the aligned averages on ``tau_onset``/``tau_decay`` [s], their
         counts, the ensemble-mean tilt on ``time_onset``/``time_decay`` and the
         per-replica event times on ``event_replica``
@@ -1292,7 +1423,7 @@ def pile_fits(pile: PileRecords, ens: xr.Dataset, fits_cfg: Mapping,
     q = window_half_width(float(cfg["moving_average_s"]), block_s)
     hold = _hold_samples(ens, cfg)
     stop = float(ens.attrs["stop_time_s"])
-    results = _event_results(pile, cfg, stop)
+    results = _event_results(pile, cfg, stop) + _where_rows(pile, cfg)
     for w in WINDOWS:
         c = pile.events.get(f"correlation_{w}", np.array([]))
         c = c[np.isfinite(c)]

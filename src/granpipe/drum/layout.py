@@ -276,11 +276,13 @@ _NOT_SEEDED = (
     ("physics", "friction"),
     ("physics", "k_t"),
     ("protocol", "pile_sample_s"),
+    ("protocol", "disk_record"),
 )
-"""Keys left out of the seed: the bad-state bound and the pile's sampling (they never change
-a trajectory), and the friction law, so that replica k of a static-friction point starts
-from the same placement and tangent vector as replica k of its viscous twin (paired
-replicas: the difference between the laws is measured on common random numbers)."""
+"""Keys left out of the seed: the bad-state bound, the pile's sampling and its per-disk
+record (they never change a trajectory), and the friction law, so that replica k of a
+static-friction point starts from the same placement and tangent vector as replica k of
+its viscous twin (paired replicas: the difference between the laws is measured on common
+random numbers)."""
 
 
 @functools.lru_cache(maxsize=4)
@@ -401,6 +403,11 @@ BYTES_PER_BLOCK = 256
 """A generous bound on one replica's recorded bytes per block (block means of λ, V, the
 pile's tilt and centroid, counts), for the memory check of :func:`check`."""
 
+BYTES_PER_DISK_SAMPLE = 16
+"""One replica's recorded bytes per mobile disk and pile sample of the onset window with
+``protocol.disk_record`` (|δu_i| and |v_i| as float32, held twice while a batch's arrays
+are stacked), for the memory check of :func:`check`."""
+
 BYTES_PER_DISK = 4096
 """A generous bound on one replica's memory per disk (state rows, neighbour and pair
 lists, pair buffers: ``granpipe.engine.layout``), for the memory check of :func:`check`."""
@@ -470,6 +477,15 @@ def check(section: Mapping) -> dict:
             BYTES_PER_BLOCK * blocks * int(p["ensemble"]["batch_size"]),
         )  # fmt: skip
     _check_drum(sec)
+    for p in pts:  # the per-disk record of the onset window's pile samples (after the disks)
+        if p["protocol"]["disk_record"]:
+            st = steps(p)
+            n_mobile = int(p["physics"]["n_small"]) + int(p["physics"]["n_large"])
+            check_memory(
+                "drum.protocol.disk_record", True,
+                BYTES_PER_DISK_SAMPLE * (st.onset // st.sample + 1) * n_mobile
+                * int(p["ensemble"]["batch_size"]),
+            )  # fmt: skip
     return sec
 
 

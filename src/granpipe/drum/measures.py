@@ -23,6 +23,12 @@ variable                  dims                    units   meaning
 ``tilt_decay``, ...       (replica, pile_decay)           the same, decay window
 ========================  ======================  ======  ===================================
 
+With ``protocol.disk_record`` (default), ``disk_du_onset`` (replica, pile_onset,
+particle) [1] holds each mobile disk's |δu_i| over the largest and ``disk_speed_onset``
+(replica, pile_onset, particle) [d_s/t0] its speed |v_i|, both float32, at the pile's
+samples of the onset window (where each pile's avalanche starts: docs/drum.md, "Where
+the avalanche starts").
+
 ``speed_lyapunov_correlation_onset`` (replica, pile_onset) and ``..._decay`` [1] hold the
 correlation C(|δu_i|, |v_i|) over the mobile disks at the pile's samples (where the chaos
 lives; :mod:`granpipe.analysis.lyapunov`).
@@ -176,6 +182,11 @@ class ReplicaRecord:
     """(S,) [s] the samples' times after the start of the onset window."""
     pile_decay: np.ndarray | None = None
     pile_seconds_decay: np.ndarray | None = None
+    disk_du_onset: np.ndarray | None = None
+    """(S, N) float32: each mobile disk's |δu_i| over the largest at the onset window's
+    pile samples (``protocol.disk_record``; None without)."""
+    disk_speed_onset: np.ndarray | None = None
+    """(S, N) float32 [d_s/t0]: each mobile disk's |v_i| at the same samples."""
 
 
 def time_coords(n_blocks: int, steps: Steps, window: str) -> dict:
@@ -246,6 +257,8 @@ def batch_dataset(
 
     if all(r.pile_onset is not None for r in records):
         _pile_variables(ds, records)
+    if all(r.disk_du_onset is not None for r in records) and "pile_onset" in ds.dims:
+        _disk_variables(ds, records)
 
     def col(attr, dtype):
         return np.array([getattr(r, attr) for r in records], dtype=dtype)
@@ -374,6 +387,24 @@ def _pile_variables(ds: xr.Dataset, records: Sequence[ReplicaRecord]) -> None:
                 out,
                 {"units": units, "long_name": f"{lname}, {w} window"},
             )
+
+
+def _disk_variables(ds: xr.Dataset, records: Sequence[ReplicaRecord]) -> None:
+    """Per-disk |δu_i| and |v_i| of every replica at the onset window's pile samples,
+    (replica, pile_onset, particle) float32, NaN past a replica's last sample."""
+    S, N = ds.sizes["pile_onset"], records[0].disk_du_onset.shape[1]
+    for name, attr, units, lname in (
+        ("disk_du_onset", "disk_du_onset", "1", "|δu_i| of the Lyapunov vector over its "
+         "largest, per mobile disk at the pile's samples, onset window"),
+        ("disk_speed_onset", "disk_speed_onset", "d_s/t0", "speed |v_i| per mobile disk at "
+         "the pile's samples, onset window"),
+    ):  # fmt: skip
+        out = np.full((len(records), S, N), np.nan, np.float32)
+        for i, r in enumerate(records):
+            a = getattr(r, attr)
+            out[i, : len(a)] = a
+        ds[name] = (("replica", "pile_onset", "particle"), out,
+                    {"units": units, "long_name": lname})  # fmt: skip
 
 
 # ---------------------------------------------------------------- the pile's events

@@ -34,7 +34,9 @@ Then, for both:
    (surface tilt, centroid angle, rigid-rotation speed;
    :func:`granpipe.drum.measures.pile_state`) at t = 0 and every
    ``protocol.pile_sample_s`` (0.1 s), between engine calls of that length (the same
-   bits as longer calls).
+   bits as longer calls); with ``protocol.disk_record`` (default) also each mobile
+   disk's |δu_i| and |v_i| at these samples (:func:`disk_sample`; it only reads the
+   state, so λ(t) and V(t) are the same bits with it or without).
 5. **Continuous avalanche** — the avalanche *flows* at the end of a chunk if the mean of
    V over the preceding ``protocol.continuous_hold_s`` exceeds
    ``1 + protocol.continuous_excess`` times the speed of rigid rotation with the drum,
@@ -84,6 +86,7 @@ __all__ = [
     "Progress",
     "initial_tangent",
     "run_protocol",
+    "disk_sample",
     "init_batch",
     "run_batch",
     "run_replica",
@@ -181,6 +184,18 @@ def _snapshot(model, state, label, description):
     )
 
 
+def disk_sample(model, state) -> tuple[np.ndarray, np.ndarray]:
+    """(|δu_i| over its largest [1], |v_i| [d_s/t0]) of the mobile disks, each (N,)
+    float32; |δu_i| NaN without a tangent vector (the same measure as the shear cell's,
+    :func:`granpipe.analysis.lyapunov.lyapunov_vector_magnitude`)."""
+    n = model.n_mobile
+    du = np.full(n, np.nan, np.float32)
+    if state.has_tangent:
+        dr, dv = state.tangent_stored
+        du = lyapunov_vector_magnitude(dr[:n], dv[:n], relative=True).astype(np.float32)
+    return du, np.hypot(*state.velocities[:n].T).astype(np.float32)
+
+
 def run_protocol(
     model: DrumModel,
     st: Steps,
@@ -222,10 +237,11 @@ def run_protocol(
             on_chunk(total, t_origin_s, phase)
         return rec
 
-    def recorded(sim_, n_steps, phase, t_origin_s, pile, seconds):
+    def recorded(sim_, n_steps, phase, t_origin_s, pile, seconds, disks=None):
         """``advance`` with the tangent vector, in engine calls of at most ``st.sample``
         steps, the pile sampled after each (the same bits as one call: the engine keeps
-        nothing between calls that a split changes)."""
+        nothing between calls that a split changes), and the disks too into ``disks``
+        (a list) unless it is None."""
         nonlocal total
         lam, v = [], []
         done_ = 0
@@ -236,6 +252,8 @@ def run_protocol(
             v.append(rec.global_speed)
             done_ += m
             pile.append(pile_sample(model, state, om))
+            if disks is not None:
+                disks.append(disk_sample(model, state))
             seconds.append((seconds[-1] if seconds else 0.0) + m * st.dt_s)
         total += n_steps
         if on_chunk is not None:
@@ -269,10 +287,12 @@ def run_protocol(
         return bool(np.mean(v[-hold:]) > (1.0 + excess) * model.rigid_speed(state, om))
 
     pile_on, sec_on = [pile_sample(model, state, om)], [0.0]
+    disks_on = [disk_sample(model, state)] if protocol["disk_record"] else None
     done = 0
     while done < st.onset:
         n = min(st.chunk, st.onset - done)
-        lam, v = recorded(sim, n, "onset window", (done + n) * st.dt_s, pile_on, sec_on)
+        lam, v = recorded(sim, n, "onset window", (done + n) * st.dt_s, pile_on, sec_on,
+                          disks_on)  # fmt: skip
         lam_on.append(lam)
         v_on.append(v)
         speeds.append(v)
@@ -341,6 +361,8 @@ def run_protocol(
         pile_seconds_onset=np.asarray(sec_on),
         pile_decay=np.asarray(pile_de),
         pile_seconds_decay=np.asarray(sec_de),
+        disk_du_onset=None if disks_on is None else np.stack([d for d, _ in disks_on]),
+        disk_speed_onset=None if disks_on is None else np.stack([v for _, v in disks_on]),
     )
 
 

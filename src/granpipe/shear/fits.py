@@ -36,8 +36,7 @@ from ..analysis.events import align_on_many_events
 from ..analysis.prediction import (
     bootstrap_auc,
     event_follows,
-    precision_at_size,
-    roc_auc,
+    locate,
     roc_curve,
     trailing_mean,
 )
@@ -275,15 +274,9 @@ def where_prediction(ds: xr.Dataset, idx: list, cfg) -> list[FitResult]:
     for r, events in enumerate(idx):
         got = {k: [] for k in per_rep}
         for e in events[events >= lead]:
-            members = ch[r, e] > 0
-            if not members.any():
-                continue
-            got["precision_du"].append(precision_at_size(du[r, e - lead], members))
-            got["precision_speed"].append(precision_at_size(v[r, e - lead], members))
-            got["precision_random"].append(members.mean())
-            got["auc_du"].append(roc_auc(du[r, e - lead], members))
-            got["auc_speed"].append(roc_auc(v[r, e - lead], members))
-            got["event_size"].append(members.sum())
+            one = locate({"du": du[r, e - lead], "speed": v[r, e - lead]}, ch[r, e] > 0)
+            for k, x in (one or {}).items():
+                got[k].append(x)
         n_ev += len(got["event_size"])
         for k, x in got.items():
             if x:
