@@ -29,6 +29,8 @@ __all__ = [
     "THREADS",
     "POSITIVE",
     "NON_NEGATIVE",
+    "trajectory_options",
+    "trajectory_command",
 ]
 
 
@@ -84,6 +86,39 @@ params_option = click.option(
     help="JSON object: the config subset this stage depends on (rules pass it).",
 )
 """Shared ``--params JSON`` option for stage commands."""
+
+
+def trajectory_options(fn):
+    """The options of ``granpipe <study> trajectory``: replica, window, frame interval,
+    format and output path."""
+    opts = [
+        click.option("--replica", type=INDEX, required=True, help="replica index"),
+        click.option("--start", type=FiniteRange(), required=True,
+                     help="window start [s of the study's record clock]"),
+        click.option("--end", type=FiniteRange(), required=True, help="window end [s]"),
+        click.option("--every", type=POSITIVE, required=True,
+                     help="frame interval [s], rounded to whole steps"),
+        click.option("--format", "fmt", type=click.Choice(["extxyz", "vtu"]), required=True,
+                     help="extxyz (one file, OVITO) or vtu (a .pvd index and .vtu frames, "
+                     "ParaView)"),
+        click.option("--out", type=click.Path(dir_okay=False), required=True,
+                     help="the .xyz file, or the .pvd index (frames in <stem>_frames/)"),
+    ]  # fmt: skip
+    for opt in reversed(opts):
+        fn = opt(fn)
+    return params_option(fn)
+
+
+def trajectory_command(replay, params, replica, start, end, every, fmt, out) -> None:
+    """Run a study's ``trajectory`` and write it; a refusal names its option."""
+    from .trajectory import TrajectoryError, replay_to_file
+
+    try:
+        path, ds = replay_to_file(replay, params, replica, (start, end), every, fmt, out)
+    except TrajectoryError as exc:
+        raise click.BadParameter(str(exc), param_hint=f"--{exc.option}") from None
+    click.echo(f"wrote {path}: {ds.sizes['frame']} frames of {ds.sizes['disk']} disks",
+               err=True)  # fmt: skip
 
 
 class StudyGroup(click.Group):
