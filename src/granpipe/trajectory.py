@@ -105,17 +105,18 @@ class Schedule:
         Frame steps after the record's start (t = 0 of the study's clock).
     every : int
         Steps between frames.
-    dt_s : float [s]
+    dt : float [s, or the study's time unit]
         One engine step.
     """
 
     steps: np.ndarray
     every: int
-    dt_s: float
+    dt: float
 
     @classmethod
-    def build(cls, window, every_s: float, dt_s: float, record_s: float, n_disks: int):
-        """The frames ``start, start + every, …`` up to ``end`` (seconds after the record's
+    def build(cls, window, every_s: float, dt_s: float, record_s: float, n_disks: int,
+              unit: str = "s"):  # fmt: skip
+        """The frames ``start, start + every, …`` up to ``end`` (in ``unit`` after the record's
         start, rounded to whole steps), refused before anything runs if the window lies
         outside ``[0, record_s]`` or is empty, ``every_s`` is below one step ``dt_s``, or
         frames × disks × :data:`PER_DISK_FIELDS` exceeds :data:`MAX_VALUES`."""
@@ -130,16 +131,16 @@ class Schedule:
                 raise TrajectoryError(name, f"{name} must be a finite number, got {v}")
         tol = 0.5 * dt_s
         if start < -tol or start > record_s + tol:
-            raise TrajectoryError("start", f"start {start:g} s is outside the recorded time "
-                                  f"0 .. {record_s:g} s")  # fmt: skip
+            raise TrajectoryError("start", f"start {start:g} {unit} is outside the recorded time "
+                                  f"0 .. {record_s:g} {unit}")  # fmt: skip
         if end > record_s + tol or end < -tol:
-            raise TrajectoryError("end", f"end {end:g} s is outside the recorded time "
-                                  f"0 .. {record_s:g} s")  # fmt: skip
+            raise TrajectoryError("end", f"end {end:g} {unit} is outside the recorded time "
+                                  f"0 .. {record_s:g} {unit}")  # fmt: skip
         if end < start:
-            raise TrajectoryError("end", f"end {end:g} s is before start {start:g} s")
+            raise TrajectoryError("end", f"end {end:g} {unit} is before start {start:g} {unit}")
         if every < dt_s * (1 - 1e-9):
-            raise TrajectoryError("every", f"frame interval {every:g} s is below the time "
-                                  f"step {dt_s:g} s")  # fmt: skip
+            raise TrajectoryError("every", f"frame interval {every:g} {unit} is below the time "
+                                  f"step {dt_s:g} {unit}")  # fmt: skip
         n_rec = round(record_s / dt_s)
         first = min(max(round(start / dt_s), 0), n_rec)
         last = min(max(round(end / dt_s), 0), n_rec)
@@ -174,16 +175,24 @@ class FrameRecorder:
         Whether the protocol integrates a tangent vector (``du`` is recorded then).
     spin : bool
         Whether the contact law has spin (``spin`` is recorded then).
+    extras : mapping, optional
+        ``{name: (callable(State) -> float, units, long name)}``: more per-frame values.
+    length_unit, time_unit : str
+        The study's length unit and the unit of ``time`` and of the schedule's step (the
+        box: ``sigma`` and ``t0``; ``t0_s`` None then).
     """
 
-    def __init__(self, schedule: Schedule, t0_s: float, mobile, phase=None, tangent=True,
-                 spin=False):  # fmt: skip
+    def __init__(self, schedule: Schedule, t0_s: float | None, mobile, phase=None,
+                 tangent=True, spin=False, extras=None, length_unit="d_s",
+                 time_unit="s"):  # fmt: skip
         self.schedule = schedule
-        self.t0_s = float(t0_s)
+        self.t0_s = None if t0_s is None else float(t0_s)
         self.mobile = np.asarray(mobile, bool)
         self.phase = phase
         self.tangent = bool(tangent)
         self.spin = bool(spin)
+        self.extras = dict(extras or {})
+        self.length_unit, self.time_unit = str(length_unit), str(time_unit)
         self.frames: list[dict] = []
         self.step = None
         self._acc = None  # sums of λ·count, count, V·steps, steps since the interval began
@@ -212,8 +221,7 @@ class FrameRecorder:
         speed = acc[2] / acc[3] if acc is not None and acc[3] else math.nan
         vel = state.velocities
         frame = {
-            "time": self.step * self.schedule.dt_s,
-            "local_lyapunov": lam,
+            "time": self.step * self.schedule.dt,
             "global_speed": speed,
             "x": state.positions[:, 0].copy(),
             "y": state.positions[:, 1].copy(),
@@ -230,8 +238,12 @@ class FrameRecorder:
             du[self.mobile] = lyapunov_vector_magnitude(dr[self.mobile], dv[self.mobile],
                                                         relative=True)  # fmt: skip
             frame["du"] = du
+        if self.tangent:
+            frame["local_lyapunov"] = lam
         if self.phase is not None:
             frame["phase"] = float(self.phase(state))
+        for name, (fn, _, _) in self.extras.items():
+            frame[name] = float(fn(state))
         self.frames.append(frame)
 
     def run(self, sim, state, n_steps, *, stride=0, tangent=False):
@@ -276,21 +288,23 @@ class FrameRecorder:
         fr = self.frames
         if not fr:
             raise RuntimeError("no frame was captured")
+        L, T = self.length_unit, self.time_unit
         spec = {  # name: (per disk?, units, long name)
-            "time": (False, "s", "time after the record's start"),
+            "time": (False, T, "time after the record's start"),
             "local_lyapunov": (False, "1/t0", "mean of the local Lyapunov exponent λ(t) over "
                                "the frame interval ending at the frame"),
-            "global_speed": (False, "d_s/t0", "mean of V(t) = sqrt(Σ|v_i|²) over the frame "
+            "global_speed": (False, f"{L}/t0", "mean of V(t) = sqrt(Σ|v_i|²) over the frame "
                              "interval ending at the frame"),
             "phase": (False, "rad", "the drive's phase"),
-            "x": (True, "d_s", "centre, x"),
-            "y": (True, "d_s", "centre, y"),
-            "radius": (True, "d_s", "radius"),
-            "vx": (True, "d_s/t0", "velocity, x"),
-            "vy": (True, "d_s/t0", "velocity, y"),
+            "x": (True, L, "centre, x"),
+            "y": (True, L, "centre, y"),
+            "radius": (True, L, "radius"),
+            "vx": (True, f"{L}/t0", "velocity, x"),
+            "vy": (True, f"{L}/t0", "velocity, y"),
             "spin": (True, "rad/t0", "angular velocity (counter-clockwise > 0)"),
             "contacts": (True, "1", "contacts at the last force evaluation, walls included"),
             "du": (True, "1", "|δu_i| of the tangent vector over its largest (mobile disks)"),
+            **{k: (False, u, ln) for k, (_, u, ln) in self.extras.items()},
         }  # fmt: skip
         data = {}
         for name, (disk, units, long) in spec.items():
@@ -306,10 +320,14 @@ class FrameRecorder:
         ds = xr.Dataset(data, coords={"frame": ("frame", np.arange(len(fr))),
                                       "disk": ("disk", np.arange(n))})  # fmt: skip
         ds.attrs.update(
-            length_unit="d_s", time_unit_s=self.t0_s, time_unit="t0",
-            dt_s=self.schedule.dt_s, every_s=self.schedule.every * self.schedule.dt_s,
+            length_unit=L,
+            time_unit=T,
+            dt=self.schedule.dt,
+            every=self.schedule.every * self.schedule.dt,
             **(attrs or {}),
-        )  # fmt: skip
+        )
+        if self.t0_s is not None:
+            ds.attrs["t0_s"] = self.t0_s
         return ds
 
 
@@ -325,14 +343,19 @@ def _target(path) -> Path:
 
 
 def _info(ds: xr.Dataset, k: int) -> dict:
-    info = {"frame": int(k), "time_s": float(ds["time"].values[k])}
-    for name in ("local_lyapunov", "global_speed", "phase"):
-        if name in ds:
+    """The frame's per-frame values and the units, for a comment line."""
+    info = {"frame": int(k)}
+    units = []
+    for name in ds.data_vars:
+        if ds[name].dims == ("frame",):
             info[name] = float(ds[name].values[k])
-    info["units"] = ("length d_s, velocity d_s/t0, spin rad/t0, time s, local_lyapunov "
-                     "1/t0, global_speed d_s/t0, phase rad")  # fmt: skip
-    info["t0_s"] = float(ds.attrs["time_unit_s"])
-    for key in ("study", "point", "replica", "seed"):
+            units.append(f"{name} {ds[name].attrs['units']}")
+    L = ds.attrs["length_unit"]
+    units += [f"length {L}", f"velocity {L}/t0", "spin rad/t0"]
+    info["units"] = ", ".join(units)
+    if "t0_s" in ds.attrs:
+        info["t0_s"] = float(ds.attrs["t0_s"])
+    for key in ("study", "point", "replica", "seed", "window"):
         if key in ds.attrs:
             info[key] = ds.attrs[key]
     return info
@@ -375,7 +398,7 @@ def write_vtu(ds: xr.Dataset, path) -> Path:
     """One ``.vtu`` per frame (meshio; vertices at the centres, z = 0, point data
     ``radius``, ``velocity`` (N, 3), ``spin``, ``wall``, ``contacts``, ``du``) in the folder
     ``<stem>_frames`` beside ``path``, and ``path`` itself a ``.pvd`` index giving each
-    frame's time in s (ParaView reads it as a time series)."""
+    frame's time (ParaView reads it as a time series)."""
     import meshio
 
     p = _target(path)

@@ -42,7 +42,7 @@ def test_the_last_frame_is_the_runs_final_state_bit_for_bit(replay):
                                   run["positions"])  # fmt: skip
     np.testing.assert_array_equal(np.hypot(last.vx.values, last.vy.values)[:n], run["v"])
     np.testing.assert_array_equal(last.du.values[:n], run["du"])
-    assert float(last.time) == pytest.approx(0.4, abs=ds.attrs["dt_s"])
+    assert float(last.time) == pytest.approx(0.4, abs=ds.attrs["dt"])
     assert np.all(np.isfinite(ds["local_lyapunov"])) and np.all(ds["global_speed"] > 0)
     assert np.all(np.diff(ds["phase"].values) > 0)  # the inner ring turns
 
@@ -74,7 +74,7 @@ def test_extxyz_reads_back_through_ase(replay, tmp_path):
         np.testing.assert_allclose(a.arrays["du"], f.du.values, atol=5e-9)
         np.testing.assert_array_equal(a.arrays["contacts"], f.contacts.values)
         np.testing.assert_array_equal(a.arrays["wall"], ds["wall"].values)
-        assert a.info["time_s"] == float(f.time)
+        assert a.info["time"] == float(f.time)
         assert a.info["local_lyapunov"] == float(f.local_lyapunov)
         assert "d_s" in a.info["units"]
 
