@@ -53,8 +53,9 @@ __all__ = [
     "replay_to_file",
 ]
 
-FORMATS = ("extxyz", "vtu")
-"""The file formats :func:`write_trajectory` writes."""
+FORMATS = ("extxyz", "vtu", "mp4", "gif")
+"""The file formats :func:`write_trajectory` writes (the movies:
+:func:`granpipe.figures.movie.write_movie`)."""
 
 MAX_VALUES = 100_000_000
 """Largest trajectory, in values (frames × disks × per-disk fields): 0.8 GB of float64."""
@@ -434,14 +435,21 @@ def write_vtu(ds: xr.Dataset, path) -> Path:
     return p
 
 
-def write_trajectory(ds: xr.Dataset, path, fmt: str) -> Path:
-    """``ds`` written as ``fmt`` (one of :data:`FORMATS`) to ``path``."""
-    writer: Callable = {"extxyz": write_extxyz, "vtu": write_vtu}[check_format(fmt)]
+def write_trajectory(ds: xr.Dataset, path, fmt: str, fps: float = 10.0) -> Path:
+    """``ds`` written as ``fmt`` (one of :data:`FORMATS`) to ``path``; a movie at ``fps``
+    frames per second (an ``mp4`` without ffmpeg at hand becomes a GIF: the path written
+    is returned)."""
+    if check_format(fmt) in ("mp4", "gif"):
+        from .figures.movie import write_movie
+
+        p = _target(path)
+        return write_movie(ds, p.with_suffix(f".{fmt}") if p.suffix != f".{fmt}" else p, fps)
+    writer: Callable = {"extxyz": write_extxyz, "vtu": write_vtu}[fmt]
     return writer(ds, path)
 
 
 def replay_to_file(replay: Callable, params: Mapping, replica: int, window, every: float,
-                   fmt: str, out) -> tuple[Path, xr.Dataset]:  # fmt: skip
+                   fmt: str, out, fps: float = 10.0) -> tuple[Path, xr.Dataset]:  # fmt: skip
     """A study's ``trajectory`` function ``replay(params, replica, window, every)`` written
     to ``out`` as ``fmt``: the format and the folder are checked first, the replay checks
     replica, window, interval and budget before it integrates."""
@@ -451,4 +459,4 @@ def replay_to_file(replay: Callable, params: Mapping, replica: int, window, ever
     if not (folder.is_dir() and os.access(folder, os.W_OK)):
         raise TrajectoryError("out", f"cannot write into {folder}")
     ds = replay(params, replica, window, every)
-    return write_trajectory(ds, p, fmt), ds
+    return write_trajectory(ds, p, fmt, fps), ds

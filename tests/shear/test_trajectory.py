@@ -142,3 +142,16 @@ def test_the_command_writes_the_replay(params, replay, tmp_path):
     call = _invoke(params, tmp_path, format="vtu", out=str(tmp_path / "t.pvd"))
     assert call.exception is None, call.output
     assert len(list((tmp_path / "t_frames").glob("frame_*.vtu"))) == replay[0].sizes["frame"]
+
+
+@pytest.mark.parametrize("fmt", ["mp4", "gif"])
+def test_a_movie_holds_every_frame(replay, tmp_path, fmt):
+    import imageio.v2 as imageio
+
+    ds, _ = replay
+    path = traj.write_trajectory(ds, tmp_path / f"m.{fmt}", fmt, fps=10)
+    assert path.suffix in (f".{fmt}", ".gif")
+    if path.suffix == ".mp4":
+        assert imageio.get_reader(path).count_frames() == ds.sizes["frame"]
+    else:
+        assert len(imageio.mimread(path)) == ds.sizes["frame"]

@@ -149,7 +149,7 @@ def figures_cmd(params, fits_dir, out_dir, init_files, ensemble_files):
 
 @cli.command("trajectory")
 @trajectory_options
-def trajectory_cmd(params, replica, start, end, every, fmt, out):
+def trajectory_cmd(params, replica, start, end, every, fmt, out, fps):
     """One replica replayed over a window (times in t0 from the drive's start), every frame
     written for OVITO or ParaView (params: physics, init, protocol, N_l, Gamma, init_kind,
     replicas; granpipe.box.layout.trajectory_params)."""
@@ -157,4 +157,4 @@ def trajectory_cmd(params, replica, start, end, every, fmt, out):
 
     keys = ("physics", "init", "protocol", "N_l", "Gamma", "init_kind", "replicas")
     trajectory_command(trajectory, _checked(params, *keys), replica, start, end, every, fmt,
-                       out)  # fmt: skip
+                       out, fps)  # fmt: skip

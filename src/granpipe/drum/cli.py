@@ -221,7 +221,7 @@ def replica_cmd(replica, out, configfile, point, tiny):
 @click.option("--part", type=click.Choice(["onset", "decay"]), default="onset",
               show_default=True, help="the recorded window whose t = 0 --start and --end "
               "count from")  # fmt: skip
-def trajectory_cmd(params, replica, start, end, every, fmt, out, part):
+def trajectory_cmd(params, replica, start, end, every, fmt, out, fps, part):
     """One replica replayed over a window of its onset or decay window, every frame
     written for OVITO or ParaView (params: the point's simulation subset and
     ensemble.n_replicas, granpipe.drum.layout.trajectory_params)."""
@@ -231,4 +231,4 @@ def trajectory_cmd(params, replica, start, end, every, fmt, out, part):
     from .trajectory import trajectory
 
     replay = functools.partial(trajectory, part=part)
-    trajectory_command(replay, load(params), replica, start, end, every, fmt, out)
+    trajectory_command(replay, load(params), replica, start, end, every, fmt, out, fps)

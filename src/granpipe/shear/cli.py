@@ -101,11 +101,11 @@ def figures_cmd(params, out_dir, drum_fits, fits_files):
 
 @cli.command("trajectory")
 @trajectory_options
-def trajectory_cmd(params, replica, start, end, every, fmt, out):
+def trajectory_cmd(params, replica, start, end, every, fmt, out, fps):
     """One replica replayed over a window, every frame written for OVITO or ParaView
     (params: the runs' subset and n_replicas, granpipe.shear.layout.trajectory_params)."""
     from .trajectory import trajectory
 
     keys = ("point", "physics", "preparation", "protocol", "events", "n_replicas")
     trajectory_command(trajectory, _checked(params, *keys), replica, start, end, every, fmt,
-                       out)  # fmt: skip
+                       out, fps)  # fmt: skip
