@@ -1,5 +1,5 @@
-"""One box replica replayed frame by frame, for watching (docs/box.md, "Watching the
-dynamics"): :func:`trajectory` prepares the replica's initial state from its seed as the
+"""One box replica replayed frame by frame, for watching
+(docs/watching.md): :func:`trajectory` prepares the replica's initial state from its seed as the
 init stage does and runs :func:`granpipe.box.protocol.run_part` over the whole protocol
 (transient and every measured period in one part: the same bits as the chained parts)
 with a :class:`granpipe.trajectory.FrameRecorder` as its hook, and stops at the window's

@@ -1,5 +1,5 @@
-"""One drum replica replayed frame by frame, for watching (docs/drum.md, "Watching the
-dynamics"): :func:`trajectory` prepares the replica from its seed and runs
+"""One drum replica replayed frame by frame, for watching
+(docs/watching.md): :func:`trajectory` prepares the replica from its seed and runs
 :func:`granpipe.drum.protocol.run_protocol` with a
 :class:`granpipe.trajectory.FrameRecorder` as its hook in one of the two recorded windows
 (each with its own t = 0, as the run files keep them), and stops at the window's end.

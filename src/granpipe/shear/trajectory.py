@@ -1,5 +1,5 @@
-"""One shear replica replayed frame by frame, for watching (docs/shear.md, "Watching the
-dynamics"): :func:`trajectory` runs :func:`granpipe.shear.protocol.run_replica` from the
+"""One shear replica replayed frame by frame, for watching
+(docs/watching.md): :func:`trajectory` runs :func:`granpipe.shear.protocol.run_replica` from the
 replica's seed with a :class:`granpipe.trajectory.FrameRecorder` as its hook, so the
 frames are the run's states, and stops at the window's end.
 """
