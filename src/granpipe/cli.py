@@ -29,6 +29,8 @@ __all__ = [
     "THREADS",
     "POSITIVE",
     "NON_NEGATIVE",
+    "trajectory_options",
+    "trajectory_command",
 ]
 
 
@@ -84,6 +86,47 @@ params_option = click.option(
     help="JSON object: the config subset this stage depends on (rules pass it).",
 )
 """Shared ``--params JSON`` option for stage commands."""
+
+
+TRAJECTORY_FORMATS = ("extxyz", "vtu", "mp4", "gif")
+"""The formats of ``granpipe <study> trajectory`` (:data:`granpipe.trajectory.FORMATS`;
+spelled out here so that ``granpipe --help`` imports no array library)."""
+
+
+def trajectory_options(fn):
+    """The options of ``granpipe <study> trajectory``: replica, window, frame interval,
+    format and output path."""
+    opts = [
+        click.option("--replica", type=INDEX, required=True, help="replica index"),
+        click.option("--start", type=FiniteRange(), required=True,
+                     help="window start [s of the study's record clock]"),
+        click.option("--end", type=FiniteRange(), required=True, help="window end [s]"),
+        click.option("--every", type=POSITIVE, required=True,
+                     help="frame interval [s], rounded to whole steps"),
+        click.option("--format", "fmt", type=click.Choice(TRAJECTORY_FORMATS), required=True,
+                     help="extxyz (one file, OVITO), vtu (a .pvd index and .vtu frames, "
+                     "ParaView), or a movie: mp4 (GIF without ffmpeg) or gif"),
+        click.option("--out", type=click.Path(dir_okay=False), required=True,
+                     help="the .xyz file, the .pvd index (frames in <stem>_frames/) or the "
+                     "movie"),
+        click.option("--fps", type=POSITIVE, default=10.0, show_default=True,
+                     help="a movie's frames per second"),
+    ]  # fmt: skip
+    for opt in reversed(opts):
+        fn = opt(fn)
+    return params_option(fn)
+
+
+def trajectory_command(replay, params, replica, start, end, every, fmt, out, fps) -> None:
+    """Run a study's ``trajectory`` and write it; a refusal names its option."""
+    from .trajectory import TrajectoryError, replay_to_file
+
+    try:
+        path, ds = replay_to_file(replay, params, replica, (start, end), every, fmt, out, fps)
+    except TrajectoryError as exc:
+        raise click.BadParameter(str(exc), param_hint=f"--{exc.option}") from None
+    click.echo(f"wrote {path}: {ds.sizes['frame']} frames of {ds.sizes['disk']} disks",
+               err=True)  # fmt: skip
 
 
 class StudyGroup(click.Group):

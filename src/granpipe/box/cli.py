@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import click
 
-from ..cli import INDEX, POSITIVE, params_option
+from ..cli import INDEX, POSITIVE, params_option, trajectory_command, trajectory_options
 from ..config import validate_params
 
 __all__ = ["cli"]
@@ -35,6 +35,9 @@ _EXTRA = {
     "runs_config_hashes": {"type": "array", "minItems": 1, "items": {"type": "string"}},
     "points": _HASHES,
     "states": _HASHES,
+    "N_l": {"$ref": "#/x-study/properties/grid/properties/N_l/items"},
+    "Gamma": {"$ref": "#/x-study/properties/grid/properties/Gamma/items"},
+    "init_kind": {"enum": ["crystal", "random"]},
 }  # fmt: skip
 
 
@@ -142,3 +145,16 @@ def figures_cmd(params, fits_dir, out_dir, init_files, ensemble_files):
 
     params = _checked(params, "Lx", "order", "fits", "points", "states")
     figures_stage(params, fits_dir, init_files, ensemble_files, out_dir)
+
+
+@cli.command("trajectory")
+@trajectory_options
+def trajectory_cmd(params, replica, start, end, every, fmt, out, fps):
+    """One replica replayed over a window (times in t0 from the drive's start), every frame
+    written for OVITO or ParaView (params: physics, init, protocol, N_l, Gamma, init_kind,
+    replicas; granpipe.box.layout.trajectory_params)."""
+    from .trajectory import trajectory
+
+    keys = ("physics", "init", "protocol", "N_l", "Gamma", "init_kind", "replicas")
+    trajectory_command(trajectory, _checked(params, *keys), replica, start, end, every, fmt,
+                       out, fps)  # fmt: skip

@@ -64,6 +64,7 @@ __all__ = [
     "POINT_RE",
     "init_params",
     "runs_params",
+    "trajectory_params",
     "previous_part_params",
     "ensemble_params",
     "fits_params",
@@ -396,6 +397,16 @@ def runs_params(section: Mapping, part: int, walls: Walls) -> dict:
         "protocol": proto,
         "part_periods": [periods.start, periods.stop],
     }
+
+
+def trajectory_params(section: Mapping, point: str) -> dict:
+    """``granpipe box trajectory``'s subset for ``point`` (its name): the physics of its
+    walls, the preparation, the whole protocol (a replay runs every part in one), the
+    point's ``N_l``, ``Gamma`` and start, and the replica count."""
+    n_l, gamma, kind, walls = parse_point(point)
+    return {"physics": physics_for(section, walls), "init": dict(section["init"]),
+            "protocol": dict(section["protocol"]), "N_l": n_l, "Gamma": gamma,
+            "init_kind": kind, "replicas": int(section["grid"]["replicas"])}  # fmt: skip
 
 
 def previous_part_params(params: Mapping) -> dict:

@@ -31,6 +31,7 @@ every sampling phase falls on a step).
 
 from __future__ import annotations
 
+import functools
 import math
 import time as _time
 from collections.abc import Callable, Mapping
@@ -147,6 +148,7 @@ def run_part(
     tracers: np.ndarray | None = None,
     log: Callable[[str], None] | None = None,
     label: str = "box",
+    on_frame=None,
 ) -> PartResult:
     """Run one part of a point's protocol.
 
@@ -165,6 +167,10 @@ def run_part(
         Measured-period indices of this part (consecutive).
     log : callable, optional
         Receives progress lines (every ~30 s wall).
+    on_frame : optional
+        None in a run; a replay's :class:`granpipe.trajectory.FrameRecorder`, started at
+        the part's first step and running its steps in place of ``sim.run``
+        (:func:`granpipe.box.trajectory.trajectory`).
 
     Raises
     ------
@@ -208,6 +214,10 @@ def run_part(
                 f"previous part ends at step {have}, part {part} starts at step {expected}"
             )
 
+    run = sim.run
+    if on_frame is not None:
+        on_frame.start(state)
+        run = functools.partial(on_frame.run, sim)
     total = (transient_steps if part == 0 else 0) + n_periods * steps_per
     progress = Progress(log, total, label)
 
@@ -236,7 +246,7 @@ def run_part(
             if s == n_samples:
                 break
             steps = min(chunk, transient_steps - done)
-            sim.run(state, steps)
+            run(state, steps)
             done += steps
             text = f"transient period {done / steps_per:.1f} of {transient_steps / steps_per:.2f}"
             progress.update(steps, text, state.time)
@@ -271,7 +281,7 @@ def run_part(
             tg_[j, k] = tg
             zcm_[j, k] = zcm
             vzcm_[j, k] = vzcm
-            sim.run(state, chunk)
+            run(state, chunk)
             progress.update(
                 chunk, f"period {periods[j] + 1} of {periods[-1] + 1} (part {part})", state.time
             )

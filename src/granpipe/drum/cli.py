@@ -11,7 +11,7 @@ import os
 
 import click
 
-from ..cli import INDEX, THREADS, params_option
+from ..cli import INDEX, THREADS, params_option, trajectory_command, trajectory_options
 from ..config import validate_params
 
 __all__ = ["cli"]
@@ -214,3 +214,21 @@ def replica_cmd(replica, out, configfile, point, tiny):
         stage="replica",
     )
     click.echo(f"wrote {out}", err=True)
+
+
+@cli.command("trajectory")
+@trajectory_options
+@click.option("--part", type=click.Choice(["onset", "decay"]), default="onset",
+              show_default=True, help="the recorded window whose t = 0 --start and --end "
+              "count from")  # fmt: skip
+def trajectory_cmd(params, replica, start, end, every, fmt, out, fps, part):
+    """One replica replayed over a window of its onset or decay window, every frame
+    written for OVITO or ParaView (params: the point's simulation subset and
+    ensemble.n_replicas, granpipe.drum.layout.trajectory_params)."""
+    import functools
+
+    from .layout import load
+    from .trajectory import trajectory
+
+    replay = functools.partial(trajectory, part=part)
+    trajectory_command(replay, load(params), replica, start, end, every, fmt, out, fps)

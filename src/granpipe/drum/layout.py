@@ -52,6 +52,7 @@ __all__ = [
     "point_names",
     "point_sections",
     "rule_params",
+    "trajectory_params",
     "ENSEMBLE_KEYS",
     "batch_ids",
     "n_batches",
@@ -199,6 +200,15 @@ def rule_params(section: Mapping) -> dict[str, dict]:
         "fits": fits,
         "figures": {"figures": sec["figures"], "points": table},
     }
+
+
+def trajectory_params(section: Mapping, point: str) -> dict:
+    """``granpipe drum trajectory``'s subset for ``point``: its simulation subset (a replay
+    is the run) and its replica count (the replicas it may replay)."""
+    sec = filled(section)
+    sim = rule_params(sec)["sim"][point]
+    n = point_sections(sec)[point]["ensemble"]["n_replicas"]
+    return {**sim, "ensemble": {**sim["ensemble"], "n_replicas": n}}
 
 
 def n_batches(section: Mapping) -> int:

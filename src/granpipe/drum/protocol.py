@@ -207,11 +207,17 @@ def run_protocol(
     seed: int = 0,
     snapshots: bool = False,
     on_chunk: Callable[[int, float, str], None] | None = None,
+    on_frame=None,
+    frame_window: str = "onset",
 ) -> ReplicaRecord:
     """Steps 3-6 of the module docstring from a prepared start; one onset-decay pair.
 
     Returns a :class:`~granpipe.drum.measures.ReplicaRecord` (λ in 1/t0, V in d_s/t0,
     times in s); ``settled``/``settle_time`` are copied from ``start``.
+
+    ``on_frame``: None in a run; a replay's :class:`granpipe.trajectory.FrameRecorder`,
+    started at t = 0 of the window ``frame_window`` (``onset`` or ``decay``) and running
+    that window's steps in its place (:func:`granpipe.drum.trajectory.trajectory`).
     """
     t_wall = time.perf_counter()
     om = model.omega
@@ -228,6 +234,13 @@ def run_protocol(
                         np.concatenate([dv, np.zeros((n_w, 2))]))  # fmt: skip
 
     total = 0
+    frames = None  # the replay's recorder, once its window has started
+
+    def watch(window):
+        nonlocal frames
+        if on_frame is not None and window == frame_window:
+            on_frame.start(state)
+            frames = on_frame
 
     def advance(sim_, n_steps, stride, phase, t_origin_s, tangent=True):
         nonlocal total
@@ -247,7 +260,10 @@ def run_protocol(
         done_ = 0
         while done_ < n_steps:
             m = min(st.sample, n_steps - done_)
-            rec = sim_.run(state, m, stride=st.block, tangent=True)
+            if frames is None:
+                rec = sim_.run(state, m, stride=st.block, tangent=True)
+            else:
+                rec = frames.run(sim_, state, m, stride=st.block, tangent=True)
             lam.append(rec.local_lyapunov)
             v.append(rec.global_speed)
             done_ += m
@@ -288,6 +304,7 @@ def run_protocol(
 
     pile_on, sec_on = [pile_sample(model, state, om)], [0.0]
     disks_on = [disk_sample(model, state)] if protocol["disk_record"] else None
+    watch("onset")
     done = 0
     while done < st.onset:
         n = min(st.chunk, st.onset - done)
@@ -332,6 +349,8 @@ def run_protocol(
     sim_stopped = model.simulation(0.0)
     lam_de, v_de = [], []
     pile_de, sec_de = [pile_sample(model, state, om)], [0.0]
+    frames = None
+    watch("decay")
     done = 0
     while done < st.decay:
         turning = done < st.decay_rotating

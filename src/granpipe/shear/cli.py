@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import click
 
-from ..cli import INDEX, params_option
+from ..cli import INDEX, params_option, trajectory_command, trajectory_options
 from ..config import validate_params
 
 __all__ = ["cli"]
@@ -97,3 +97,15 @@ def figures_cmd(params, out_dir, drum_fits, fits_files):
 
     keys = ("points", "bootstrap_resamples", "confidence", "seed", "dpi", "contrast_phi")
     figures_stage(_checked(params, *keys), fits_files, out_dir, drum_fits)
+
+
+@cli.command("trajectory")
+@trajectory_options
+def trajectory_cmd(params, replica, start, end, every, fmt, out, fps):
+    """One replica replayed over a window, every frame written for OVITO or ParaView
+    (params: the runs' subset and n_replicas, granpipe.shear.layout.trajectory_params)."""
+    from .trajectory import trajectory
+
+    keys = ("point", "physics", "preparation", "protocol", "events", "n_replicas")
+    trajectory_command(trajectory, _checked(params, *keys), replica, start, end, every, fmt,
+                       out, fps)  # fmt: skip

@@ -23,7 +23,7 @@ from ..errors import ConfigError
 __all__ = ["check", "FIGURES", "point_name", "wildcards_point", "split_point", "variants",
            "phis", "points", "n_replicas", "batches", "run_file", "fits_file", "physics_for",
            "preparation_for", "runs_params", "fits_params", "summary_params", "figures_params",
-           "run_files"]  # fmt: skip
+           "run_files", "trajectory_params"]  # fmt: skip
 
 FIGURES = ("fig1_lambda_vs_phi", "fig2_event_triggered", "fig3_contrast", "fig4_chaos_map",
            "fig5_jamming", "fig6_prediction", "fig7_variants")  # fmt: skip
@@ -178,6 +178,12 @@ def runs_params(cfg: Mapping, point: str) -> dict:
             "preparation": preparation_for(cfg, point), "protocol": cfg["protocol"],
             "events": {"edge_cutoff": cfg["events"]["edge_cutoff"]},
             "batch_size": cfg["ensemble"]["batch_size"]}  # fmt: skip
+
+
+def trajectory_params(cfg: Mapping, point: str) -> dict:
+    """``granpipe shear trajectory``'s subset: the runs' (a replay is the run) and the
+    point's replica count (the replicas it may replay)."""
+    return {**runs_params(cfg, point), "n_replicas": n_replicas(cfg, point)}
 
 
 def fits_params(cfg: Mapping, point: str) -> dict:

@@ -26,6 +26,7 @@ point's section: its first child places the disks, the second draws the tangent 
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping
 
@@ -65,8 +66,13 @@ class Steps:
         self.align = round(float(pr["tangent_alignment_s"]) / self.dt_s)
 
 
-def run_replica(section: Mapping, replica: int, log: Callable[[str], None] = lambda m: None):
-    """One replica at the section's point; returns a dict of its records (see module)."""
+def run_replica(section: Mapping, replica: int, log: Callable[[str], None] = lambda m: None,
+                on_frame=None):  # fmt: skip
+    """One replica at the section's point; returns a dict of its records (see module).
+
+    ``on_frame``: None in a run; a replay's :class:`granpipe.trajectory.FrameRecorder`,
+    started at t = 0 and running the record's steps in its place
+    (:func:`granpipe.shear.trajectory.trajectory`)."""
     cell = ShearCell.from_physics(section["physics"])
     st = Steps(section)
     rng = replica_rng("shear", section["physics"], replica)
@@ -102,8 +108,12 @@ def run_replica(section: Mapping, replica: int, log: Callable[[str], None] = lam
     depth = float(section["protocol"]["bulk_depth"])
     before, ln_before = edges(), log_norm()
     per = st.sample // st.block
+    run = sim.run
+    if on_frame is not None:
+        on_frame.start(state)
+        run = functools.partial(on_frame.run, sim)
     for k in range(st.n_samples):
-        rec = sim.run(state, st.sample, stride=st.block, tangent=True)
+        rec = run(state, st.sample, stride=st.block, tangent=True)
         lam[k * per : (k + 1) * per] = rec.local_lyapunov
         speed[k * per : (k + 1) * per] = rec.global_speed
         after = edges()
