@@ -285,49 +285,52 @@ def test_adding_a_drum_period_plans_only_its_point(quick):
     )  # fmt: skip
 
 
-def test_adding_a_packing_fraction_plans_only_its_point(quick):
-    """A second φ of the shear cell is its own point: only its batches and fits, and the
-    summary and figures that gather every point, are planned."""
+def _shear_jobs_added(quick, edit) -> tuple[dict, dict]:
+    """Jobs a shear-only config plans beyond the quick scale's once ``edit`` has changed its
+    shear section (the gathering rules planned once each and left out), and the quick
+    scale's shear section."""
     workdir, base = quick
     if "shear" not in studies(base):
         pytest.skip("the shear study is not part of this scale")
     one = copy.deepcopy(base)
     one["studies"] = ["shear"]
     two = copy.deepcopy(one)
-    phi = two["shear"]["physics"]["phi"]
-    two["shear"]["physics"]["phi"] = [*(phi if isinstance(phi, list) else [phi]), 0.7]
-    before = planned_jobs(workdir, write_config(workdir, one, "one_phi.yaml"))
-    jobs = planned_jobs(workdir, write_config(workdir, two, "two_phi.yaml"))
-    ens = base["shear"]["ensemble"]
+    edit(two["shear"])
+    before = planned_jobs(workdir, write_config(workdir, one, "base.yaml"))
+    jobs = planned_jobs(workdir, write_config(workdir, two, "edited.yaml"))
     added = {k: jobs.get(k, 0) - before.get(k, 0) for k in set(jobs) | set(before)}
     added = {k: v for k, v in added.items() if v}
     for gathering in ("shear_summary", "shear_figures", "all"):
-        assert jobs.get(gathering) == 1
+        assert jobs.get(gathering) == 1, (before, jobs)
         added.pop(gathering, None)
+    return added, base["shear"]
+
+
+def test_adding_a_packing_fraction_plans_only_its_point(quick):
+    """A second φ of the shear cell is its own point: only its batches and fits, and the
+    summary and figures that gather every point, are planned."""
+
+    def edit(shear):
+        phi = shear["physics"]["phi"]
+        shear["physics"]["phi"] = [*(phi if isinstance(phi, list) else [phi]), 0.7]
+
+    added, shear = _shear_jobs_added(quick, edit)
+    ens = shear["ensemble"]
     n = -(-ens["n_replicas"] // ens["batch_size"])
-    assert added == {"shear_runs": n, "shear_fits": 1}, (before, jobs)
+    assert added == {"shear_runs": n, "shear_fits": 1}
 
 
 def test_adding_a_variant_plans_only_its_points_with_its_own_replicas(quick):
     """A variant of the shear cell (its own φ grid and replica count) adds only its
     batches and fits beside the base section's, which stay done."""
-    workdir, base = quick
-    if "shear" not in studies(base):
-        pytest.skip("the shear study is not part of this scale")
-    one = copy.deepcopy(base)
-    one["studies"] = ["shear"]
-    two = copy.deepcopy(one)
-    two["shear"]["variants"] = {"ratio_1_4": {"physics": {"d_large": 1.4, "phi": [0.7, 0.75]},
-                                              "ensemble": {"n_replicas": 3}}}  # fmt: skip
-    before = planned_jobs(workdir, write_config(workdir, one, "base.yaml"))
-    jobs = planned_jobs(workdir, write_config(workdir, two, "variant.yaml"))
-    added = {k: jobs.get(k, 0) - before.get(k, 0) for k in set(jobs) | set(before)}
-    added = {k: v for k, v in added.items() if v}
-    for gathering in ("shear_summary", "shear_figures", "all"):
-        assert jobs.get(gathering) == 1
-        added.pop(gathering, None)
-    n = -(-3 // base["shear"]["ensemble"]["batch_size"])
-    assert added == {"shear_runs": 2 * n, "shear_fits": 2}, (before, jobs)
+
+    def edit(shear):
+        shear["variants"] = {"ratio_1_4": {"physics": {"d_large": 1.4, "phi": [0.7, 0.75]},
+                                           "ensemble": {"n_replicas": 3}}}  # fmt: skip
+
+    added, shear = _shear_jobs_added(quick, edit)
+    n = -(-3 // shear["ensemble"]["batch_size"])
+    assert added == {"shear_runs": 2 * n, "shear_fits": 2}
 
 
 def test_adding_a_wall_friction_plans_only_its_points(quick):
