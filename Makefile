@@ -12,7 +12,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.granpipe-installed-$(PYVER)
 CORES ?= 2
 # Test selection: everything (physics validations and the real-SLURM test included), on
-# $(CORES) pytest workers: each test file on one worker, the workflow tests together.
+# $(CORES) pytest workers (pytest-xdist; each worker builds the session fixtures it needs).
 PYTEST_ARGS ?=
 # One BLAS thread per process: Snakemake and pytest already run processes side by side,
 # and oversubscribed BLAS threads slowed small fits tenfold on 2 cores.
@@ -42,7 +42,7 @@ quick: env
 	$(BIN)/snakemake --cores $(CORES) --configfile config/quick.yaml
 
 test: env
-	$(BIN)/python -m pytest -n $(CORES) --dist loadgroup --durations=15 $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -n $(CORES) --durations=15 $(PYTEST_ARGS)
 
 lint: env
 	$(BIN)/ruff check . && $(BIN)/ruff format --check . && $(BIN)/snakemake --lint
