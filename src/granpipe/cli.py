@@ -31,6 +31,7 @@ __all__ = [
     "NON_NEGATIVE",
     "trajectory_options",
     "trajectory_command",
+    "movie_command",
 ]
 
 
@@ -127,6 +128,17 @@ def trajectory_command(replay, params, replica, start, end, every, fmt, out, fps
         raise click.BadParameter(str(exc), param_hint=f"--{exc.option}") from None
     click.echo(f"wrote {path}: {ds.sizes['frame']} frames of {ds.sizes['disk']} disks",
                err=True)  # fmt: skip
+
+
+def movie_command(stage, params, *args) -> None:
+    """Run a study's ``movie_stage(params, *args)``; a refusal names its option."""
+    from .trajectory import TrajectoryError
+
+    try:
+        path, frames = stage(params, *args)
+    except TrajectoryError as exc:
+        raise click.BadParameter(str(exc), param_hint=f"movie.{exc.option}") from None
+    click.echo(f"wrote {path}: {frames} frames", err=True)
 
 
 class StudyGroup(click.Group):

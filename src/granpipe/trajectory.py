@@ -51,6 +51,8 @@ __all__ = [
     "write_extxyz",
     "write_vtu",
     "replay_to_file",
+    "check_movie_file",
+    "movie_window",
 ]
 
 FORMATS = ("extxyz", "vtu", "mp4", "gif")
@@ -440,12 +442,41 @@ def write_trajectory(ds: xr.Dataset, path, fmt: str, fps: float = 10.0) -> Path:
     frames per second (an ``mp4`` without ffmpeg at hand becomes a GIF: the path written
     is returned)."""
     if check_format(fmt) in ("mp4", "gif"):
-        from .figures.movie import write_movie
+        from .figures.movie import movie_suffix, write_movie
 
-        p = _target(path)
-        return write_movie(ds, p.with_suffix(f".{fmt}") if p.suffix != f".{fmt}" else p, fps)
+        p = _target(path).with_suffix(f".{fmt}")
+        if fmt == "mp4" and movie_suffix() == ".gif":
+            p = p.with_suffix(".gif")
+        return write_movie(ds, p, fps)
     writer: Callable = {"extxyz": write_extxyz, "vtu": write_vtu}[fmt]
     return writer(ds, path)
+
+
+def check_movie_file(path, option: str = "format") -> Path:
+    """``path`` if it names a movie this machine can write: a ``.mp4`` (ffmpeg found by
+    imageio-ffmpeg) or a ``.gif``; else refused naming ``option``, before anything runs
+    (a workflow's movie is written under exactly the name its rule expects)."""
+    from .figures.movie import movie_suffix
+
+    p = Path(path)
+    if p.suffix not in (".mp4", ".gif"):
+        raise TrajectoryError(option, f"a movie is a .mp4 or a .gif file, not {p.name}")
+    if p.suffix == ".mp4" and movie_suffix() == ".gif":
+        raise TrajectoryError(option, "format mp4 needs ffmpeg (the imageio-ffmpeg wheel "
+                              "ships it) and none was found: choose gif")  # fmt: skip
+    return p
+
+
+def movie_window(centre: float, before: float, after: float, lo: float, hi: float):
+    """The window ``(centre − before, centre + after)`` moved inside the record ``[lo, hi]``
+    keeping its length where the record is long enough (cut to the record where not).
+
+    Returns (start, end) in the units of the arguments.
+    """
+    length = float(before) + float(after)
+    start = float(centre) - float(before)
+    start = min(max(start, lo), max(hi - length, lo))
+    return start, min(start + length, hi)
 
 
 def replay_to_file(replay: Callable, params: Mapping, replica: int, window, every: float,

@@ -8,6 +8,7 @@ from granpipe.box import layout
 from granpipe.box import trajectory as box_traj
 from granpipe.box.stages import init_stage, runs_stage
 from granpipe.engine import State
+from granpipe.errors import ConfigError
 from granpipe.io import read_dataset
 from granpipe.trajectory import TrajectoryError
 
@@ -78,3 +79,21 @@ def test_the_command_writes_vtu_frames_and_refuses_a_bad_replica(section, point,
     ok = call("--replica", "0")
     assert ok.exception is None, ok.output
     assert len(list((tmp_path / "b_frames").glob("*.vtu"))) == 3
+
+
+def test_the_movie_shows_the_records_last_periods(section, point, tmp_path):
+    import imageio.v2 as imageio
+
+    section["movie"] = {"enabled": True, "format": "gif", "N_l": None, "Gamma": None,
+                        "inits": ["random"], "replica": 0, "periods": 1,
+                        "frames_per_period": 4, "fps": 5}  # fmt: skip
+    layout.check(section)
+    (name,) = layout.movie_points(section)
+    assert name == layout.point_name(5, 2.0, "random", layout.wall_settings(section)[0])
+    params = layout.movie_params(section, name)
+    path, frames = box_traj.movie_stage(params, tmp_path / layout.movie_file(section, name)
+                                        .replace("movie/", ""))  # fmt: skip
+    assert frames == 5 and len(imageio.mimread(path)) == 5
+    section["movie"]["Gamma"] = 1.0
+    with pytest.raises(ConfigError, match="'box.movie.Gamma' = 1.0 is not in"):
+        layout.check(section)

@@ -203,3 +203,21 @@ def test_restamp_reuses_files_whose_physics_a_point_has(pipeline, tmp_path):
     with pytest.raises(RunFileError, match=rf"{re.escape(names[1])}.*no point of this config"):
         restamp_stage(paper, [tmp / names[1] / "batch_0000.nc"], tmp_path / "other")
     assert not (tmp_path / "other").exists()
+
+
+@pytest.mark.parametrize("part", ["onset", "decay"])
+def test_the_movie_replays_the_reference_point_around_its_event(pipeline, part):
+    import imageio.v2 as imageio
+
+    from granpipe.drum.layout import movie_file, movie_input, movie_params
+    from granpipe.drum.trajectory import movie_stage
+
+    tmp, _, names, _, sec = pipeline
+    sec = {**sec, "movie": {"format": "gif", "before_s": 0.1, "after_s": 0.1, "every_s": 0.05}}
+    assert movie_input(sec) == f"runs/{names[0]}/batch_0000.nc"
+    out = tmp / movie_file(sec, part)
+    out.parent.mkdir(exist_ok=True)
+    path, frames = movie_stage(movie_params(sec), part, tmp / names[0] / "batch_0000.nc", out)
+    assert frames == 5 and len(imageio.mimread(path)) == 5
+    with pytest.raises(RunFileError, match=names[1]):  # another point's run file
+        movie_stage(movie_params(sec), part, tmp / names[1] / "batch_0000.nc", out)

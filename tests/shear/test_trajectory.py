@@ -2,6 +2,7 @@
 and every bad request refused before anything is integrated."""
 
 import json
+import re
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -77,6 +78,31 @@ def test_extxyz_reads_back_through_ase(replay, tmp_path):
         assert a.info["time"] == float(f.time)
         assert a.info["local_lyapunov"] == float(f.local_lyapunov)
         assert "d_s" in a.info["units"]
+
+
+def test_extxyz_reads_back_through_ovitos_own_importer(replay, tmp_path):
+    """OVITO maps pos, radius and velo to its Position, Radius and Velocity properties,
+    keeps the other per-atom columns under their names and the frame's values on the
+    comment line (its ``Comment`` attribute)."""
+    ovito_io = pytest.importorskip("ovito.io")
+
+    ds, _ = replay
+    path = traj.write_trajectory(ds, tmp_path / "t.xyz", "extxyz")
+    pipeline = ovito_io.import_file(str(path))
+    assert pipeline.source.num_frames == ds.sizes["frame"]
+    for k in (0, ds.sizes["frame"] - 1):
+        data, f = pipeline.compute(k), ds.isel(frame=k)
+        p = data.particles
+        xy, v = np.column_stack([f.x.values, f.y.values]), np.column_stack([f.vx, f.vy])
+        np.testing.assert_allclose(np.asarray(p.positions)[:, :2], xy, atol=5e-9)
+        np.testing.assert_allclose(np.asarray(p["Radius"]), f.radius.values, atol=5e-9)
+        np.testing.assert_allclose(np.asarray(p["Velocity"])[:, :2], v, atol=5e-9)
+        np.testing.assert_allclose(np.asarray(p["du"]), f.du.values, atol=5e-9)
+        np.testing.assert_array_equal(np.asarray(p["contacts"]), f.contacts.values)
+        np.testing.assert_array_equal(np.asarray(p["wall"]), ds["wall"].values)
+        comment = data.attributes["Comment"]
+        time = float(re.search(r"\btime=(\S+)", comment)[1])
+        assert time == pytest.approx(float(f.time), abs=5e-9) and "units=" in comment
 
 
 def test_vtu_frames_and_pvd_read_back_through_meshio(replay, tmp_path):
@@ -155,3 +181,51 @@ def test_a_movie_holds_every_frame(replay, tmp_path, fmt):
         assert imageio.get_reader(path).count_frames() == ds.sizes["frame"]
     else:
         assert len(imageio.mimread(path)) == ds.sizes["frame"]
+
+
+@pytest.fixture(scope="module")
+def movie_setup(tmp_path_factory):
+    """A point's run file (one replica per batch) and the movie's params."""
+    from granpipe.shear.stages import runs_stage
+    from tests.shear.conftest import shear_section
+
+    cfg = shear_section(
+        physics={"phi": [0.82], "n_inner": 12, "n_outer": 30},
+        preparation={"growth_stages": 10, "growth_s": 0.4, "steady_s": 0.4},
+        protocol={"record_s": 0.4, "tangent_alignment_s": 0.1, "sample_s": 0.02},
+        ensemble={"n_replicas": 2, "batch_size": 1},
+        events={"min_changes": 1, "quiet_s": 0.02},
+        movie={"replica": 1, "before_s": 0.1, "after_s": 0.1, "every_s": 0.02},
+    )
+    run = tmp_path_factory.mktemp("shear_movie") / "batch_0001.nc"
+    runs_stage(layout.runs_params(cfg, "phi=0.82"), 1, run)
+    return cfg, run
+
+
+def test_the_movie_shows_the_window_around_the_replicas_first_event(movie_setup, tmp_path):
+    import imageio.v2 as imageio
+
+    from granpipe.io import read_dataset
+    from granpipe.shear.fits import event_times
+
+    cfg, run = movie_setup
+    params = layout.movie_params(cfg)
+    assert layout.movie_point(cfg) == "phi=0.82" and layout.movie_input(cfg).endswith("0001.nc")
+    path, frames = shear_traj.movie_stage(params, run, tmp_path / "m.gif")
+    times = event_times(read_dataset(run), params["events"])[0]
+    first = times[times >= 0.1]
+    centre = first[0] if len(first) else 0.2
+    lo, hi = traj.movie_window(centre, 0.1, 0.1, 0.0, 0.4)
+    assert frames == round((hi - lo) / 0.02) + 1 == 11
+    assert len(imageio.mimread(path)) == frames
+
+
+def test_the_movie_refuses_a_run_file_of_other_physics(movie_setup, tmp_path):
+    from granpipe.io import RunFileError
+
+    cfg, run = movie_setup
+    params = layout.movie_params(cfg)
+    params["runs_config_hash"] = "0" * 16
+    with pytest.raises(RunFileError, match="config"):
+        shear_traj.movie_stage(params, run, tmp_path / "m.gif")
+    assert not list(tmp_path.iterdir())

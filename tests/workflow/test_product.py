@@ -58,8 +58,10 @@ KNOBS = {
         grow_rules=frozenset({"drum_init", "drum_runs"}),
         sim_rules=frozenset({"drum_init", "drum_runs"}),
         # the shear cell's contrast figure shows the drum's aligned λ̄: a drum fit edit
-        # redraws it too
-        fit_rules=frozenset({"drum_fits", "drum_summary", "drum_figures", "shear_figures"}),
+        # redraws it too; the movies find the pile's events with the fits' detector
+        fit_rules=frozenset(
+            {"drum_fits", "drum_summary", "drum_figures", "shear_figures", "drum_movie"}
+        ),  # fmt: skip
         figure_rule="drum_figures",
         batch_glob="runs/*/batch_*.nc",
     ),
@@ -154,7 +156,18 @@ def studies(base):
     return [s for s in base["studies"] if s in KNOBS]
 
 
+# the movies each study's quick scale writes: (how many, frames in each), from
+# config/quick.yaml's movie sections
+MOVIES = {"drum": (2, 11), "shear": (1, 11), "box": (2, 9)}
+
+
+def movie_files(workdir, study):
+    return sorted((workdir / "results" / "quick" / study / "movie").glob("*.mp4"))
+
+
 def test_quick_scale_produced_every_target(quick):
+    import imageio.v2 as imageio
+
     workdir, base = quick
     assert planned_jobs(workdir, "config/scratch.yaml") == {}
     for study in studies(base):
@@ -162,6 +175,12 @@ def test_quick_scale_produced_every_target(quick):
         assert (root / "fits" / "summary.csv").exists()
         assert list((root / "figures").glob("fig*.png"))
         assert list((root / "figures").glob("fig*.pdf"))
+        if study in MOVIES:
+            n, frames = MOVIES[study]
+            movies = movie_files(workdir, study)
+            assert len(movies) == n, movies
+            for movie in movies:
+                assert imageio.get_reader(movie).count_frames() == frames, movie
 
 
 def test_status_counts_present_and_missing_batches(quick):
@@ -481,7 +500,7 @@ def test_report_gathers_every_figure_and_summary(quick):
     names = zipfile.ZipFile(workdir / "report.zip").namelist()
     for study in studies(base):
         figures = (workdir / "results" / "quick" / study / "figures").glob("fig*.png")
-        for fig in figures:
+        for fig in [*figures, *movie_files(workdir, study)]:
             assert any(n.endswith(fig.name) for n in names), f"{fig.name} missing from report"
         assert any(n.endswith("summary.csv") for n in names)
 

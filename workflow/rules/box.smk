@@ -205,10 +205,32 @@ if "box" in config:
             "granpipe box figures --params {params.json:q} --fits-dir {params.fitsdir:q}"
             " --out-dir {params.outdir:q} {params.inits:q} {input.ensemble:q} > {log:q} 2>&1"
 
+    rule box_movie:
+        """The report's movies: one replica over the last periods of its record, one per
+        start (docs/watching.md)."""
+        output:
+            report(out("box", "movie", f"{BOX_POINT}.{BOX['movie']['format']}"),
+                   category="box", subcategory="movie", caption="../report/box_movie.rst"),
+        params:
+            json=lambda w, output: as_json(box_layout.movie_params(BOX, Path(output[0]).stem)),
+        conda:
+            "../envs/granpipe.yaml"
+        log:
+            log_path("box", "movie", f"{BOX_POINT}.log"),
+        threads: 1
+        resources:
+            runtime=lambda w: box_layout.sim_minutes(BOX, int(w.box_nl), 0)
+            * (box_layout.n_parts(BOX) + 1),
+            mem_mb=2000,
+        shell:
+            "granpipe box movie --params {params.json:q} --out {output:q} > {log:q} 2>&1"
+
     # run files are targets too: a plain rerun recomputes any that a killed job removed
     register_targets(
         "box",
         lambda: [
+            *[out("box", box_layout.movie_file(BOX, p)) for p in box_layout.movie_points(BOX)
+              if BOX["movie"]["enabled"]],
             *rules.box_figures.output,
             out("box", "fits", "summary.csv"),
             *[out("box", f) for f in box_layout.run_files(BOX)],

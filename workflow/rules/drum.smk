@@ -215,9 +215,38 @@ rule drum_figures:
 
 # The run files are targets too: after a killed job (or a killed --forcerun, which removes
 # them first) a plain rerun recomputes the missing ones, and everything after them.
+rule drum_movie:
+    """The report's movies: one replica of the reference point replayed around its pile's
+    flow onset and stop (docs/watching.md); after the reference fits, which check the
+    run files first."""
+    input:
+        runs=out("drum", drum_layout.movie_input(DRUM)),
+        fits=out("drum", drum_layout.fits_file(DRUM_REF)),
+    output:
+        report(out("drum", "movie", f"{DRUM_REF}_{{drum_window}}.{DRUM['movie']['format']}"),
+               category="drum", subcategory="movie", caption="../report/drum_movie.rst"),
+    wildcard_constraints:
+        drum_window="onset|decay",
+    params:
+        json=lambda w: as_json(drum_layout.movie_params(DRUM)),
+    conda:
+        "../envs/granpipe.yaml"
+    log:
+        log_path("drum", "movie_{drum_window}.log"),
+    threads: 1
+    resources:
+        runtime=lambda w: int(10 + DRUM["resources"]["replica_minutes"]),
+        mem_mb=2000,
+    shell:
+        "granpipe drum movie --params {params.json:q} --part {wildcards.drum_window}"
+        " --out {output:q} {input.runs:q} > {log:q} 2>&1"
+
+
 register_targets(
     "drum",
     lambda: [
+        *[out("drum", drum_layout.movie_file(DRUM, w)) for w in DRUM["movie"]["windows"]
+          if DRUM["movie"]["enabled"]],
         *rules.drum_figures.output,
         rules.drum_summary.output[0],
         *[f for files in DRUM_RUNS.values() for f in files],

@@ -113,10 +113,32 @@ rule shear_figures:
         " {params.drum:q} {input.fits:q} > {log:q} 2>&1"
 
 
+rule shear_movie:
+    """The report's movie: one replica replayed around an event (docs/watching.md)."""
+    input:
+        out("shear", shear_layout.movie_input(SHEAR)) if SHEAR_ON else [],
+    output:
+        report(out("shear", shear_layout.movie_file(SHEAR)) if SHEAR_ON else "shear.none",
+               category="shear", subcategory="movie", caption="../report/shear_movie.rst"),
+    params:
+        json=lambda w: as_json(shear_layout.movie_params(SHEAR)),
+    conda:
+        "../envs/granpipe.yaml"
+    log:
+        log_path("shear", "movie.log"),
+    threads: 1
+    resources:
+        runtime=10,
+        mem_mb=2000,
+    shell:
+        "granpipe shear movie --params {params.json:q} --out {output:q} {input:q} > {log:q} 2>&1"
+
+
 if SHEAR_ON:
     register_targets(
         "shear",
         lambda: [
+            *(rules.shear_movie.output if SHEAR["movie"]["enabled"] else []),
             *rules.shear_figures.output,
             *rules.shear_summary.output,
             *[out("shear", f) for f in shear_layout.run_files(SHEAR)],

@@ -9,7 +9,14 @@ from __future__ import annotations
 
 import click
 
-from ..cli import INDEX, POSITIVE, params_option, trajectory_command, trajectory_options
+from ..cli import (
+    INDEX,
+    POSITIVE,
+    movie_command,
+    params_option,
+    trajectory_command,
+    trajectory_options,
+)
 from ..config import validate_params
 
 __all__ = ["cli"]
@@ -22,6 +29,7 @@ _REFS = {
     "slips": "/properties/slips",
     "order": "/properties/order",
     "fits": "/properties/fits",
+    "movie": "/properties/movie",
     "Lx": "/properties/physics/properties/Lx",
 }
 _HASHES = {"type": "object", "minProperties": 1, "additionalProperties": {"type": "string"}}
@@ -158,3 +166,15 @@ def trajectory_cmd(params, replica, start, end, every, fmt, out, fps):
     keys = ("physics", "init", "protocol", "N_l", "Gamma", "init_kind", "replicas")
     trajectory_command(trajectory, _checked(params, *keys), replica, start, end, every, fmt,
                        out, fps)  # fmt: skip
+
+
+@cli.command("movie")
+@params_option
+@click.option("--out", type=click.Path(dir_okay=False), required=True)
+def movie_cmd(params, out):
+    """The report's movie of one point: one replica over the last periods of its record
+    (params: the replay's subset and movie; granpipe.box.layout.movie_params)."""
+    from .trajectory import movie_stage
+
+    keys = ("physics", "init", "protocol", "N_l", "Gamma", "init_kind", "replicas", "movie")
+    movie_command(movie_stage, _checked(params, *keys), out)

@@ -34,6 +34,9 @@ from typing import NamedTuple
 
 __all__ = [
     "check",
+    "movie_points",
+    "movie_params",
+    "movie_file",
     "INITS",
     "SIDE_WALLS",
     "WALL_TORQUES",
@@ -134,10 +137,60 @@ def check(section: Mapping) -> None:
             f"config key 'box.physics.Lx' = {lx} holds no crystal row ('box.init.crystal_rows'"
             f" = {rows}: rows of floor(Lx) and floor(Lx) - 1 disks): at least 2 for a crystal"
         )
+    mv = section.get("movie", {})
+    if mv.get("enabled", True):
+        _check_movie(section, mv)
     frames = int(pr.get("periods_per_part", 200)) + 1
     check_memory(
         "box.grid.N_l", max(n_ls), n_disks(section, max(n_ls)) * (BYTES_PER_DISK + 16 * frames)
     )
+
+
+def _check_movie(section: Mapping, mv: Mapping) -> None:
+    """``movie``'s point among the grid's, its replica among the point's, its periods
+    within the record."""
+    from ..errors import ConfigError
+
+    grid, pr = section["grid"], section.get("protocol", {})
+    for key, have in (("N_l", [int(n) for n in grid["N_l"]]),
+                      ("Gamma", [float(g) for g in grid["Gamma"]])):  # fmt: skip
+        if mv.get(key) is not None and mv[key] not in have:
+            raise ConfigError(f"config key 'box.movie.{key}' = {mv[key]} is not in "
+                              f"'box.grid.{key}' = {have}")  # fmt: skip
+    inits = list(grid.get("inits", INITS))
+    for init in mv.get("inits", INITS):
+        if init not in inits:
+            raise ConfigError(f"config key 'box.movie.inits' holds {init!r}, not in "
+                              f"'box.grid.inits' = {inits}")  # fmt: skip
+    n = int(grid.get("replicas", 1))
+    if int(mv.get("replica", 0)) >= n:
+        raise ConfigError(f"config key 'box.movie.replica' = {mv['replica']} is outside "
+                          f"the ensemble (replicas 0 .. {n - 1}, 'box.grid.replicas')")  # fmt: skip
+    total = int(pr.get("transient_periods", 0)) + int(pr.get("measured_periods", 0))
+    if int(mv.get("periods", 2)) > total:
+        raise ConfigError(f"config key 'box.movie.periods' = {mv['periods']} exceeds the "
+                          f"record's {total} periods (transient and measured)")  # fmt: skip
+
+
+def movie_points(section: Mapping) -> list[str]:
+    """The names of the movie's points: ``movie.N_l`` (default the grid's first) at
+    ``movie.Gamma`` (default the grid's largest), one per start of ``movie.inits``, under
+    the first wall setting."""
+    mv, grid = section["movie"], section["grid"]
+    n_l = int(grid["N_l"][0] if mv["N_l"] is None else mv["N_l"])
+    gamma = float(max(grid["Gamma"]) if mv["Gamma"] is None else mv["Gamma"])
+    walls = wall_settings(section)[0]
+    return [point_name(n_l, gamma, init, walls) for init in mv["inits"]]
+
+
+def movie_params(section: Mapping, point: str) -> dict:
+    """``granpipe box movie``'s subset: the replay's (:func:`trajectory_params`) and the
+    ``movie`` section."""
+    return {**trajectory_params(section, point), "movie": dict(section["movie"])}
+
+
+def movie_file(section: Mapping, point: str) -> str:
+    return f"movie/{point}.{section['movie']['format']}"
 
 
 def gamma_text(gamma: float) -> str:

@@ -20,7 +20,7 @@ from . import layout, model, preparation
 from .protocol import run_part
 from .stages import n_disks, seed_physics
 
-__all__ = ["trajectory", "schedule"]
+__all__ = ["trajectory", "schedule", "movie_stage"]
 
 
 def _recorded_t0(params: Mapping) -> tuple[float, float]:
@@ -82,4 +82,28 @@ def trajectory(params: Mapping, replica: int, window, every: float) -> xr.Datase
         "study": "box", "point": layout.point_name(n_l, gamma, kind, walls_),
         "replica": int(replica), "seed": replica_seed("box", sp, int(replica)),
         "phase": "drive phase ωt + φ of z_b(t) = z0 + A r(t) sin(ωt + φ) [rad]",
+        "speed_reference": "bed",  # a movie colours the speed relative to the bed's mean
     })  # fmt: skip
+
+
+def movie_stage(params: Mapping, out) -> tuple:
+    """The report's box movie (docs/watching.md): replica ``movie.replica`` of the point of
+    ``params`` (:func:`granpipe.box.layout.movie_params`) over the last ``movie.periods``
+    periods of its record, ``movie.frames_per_period`` frames per period, written to
+    ``out`` (.mp4 or .gif) at ``movie.fps``.
+
+    Returns (path written, frames).
+    """
+    from ..trajectory import check_movie_file, movie_window, write_trajectory
+
+    mv = params["movie"]
+    path = check_movie_file(out)
+    check_replica(mv["replica"], params["replicas"])
+    _, record = _recorded_t0(params)
+    phases = int(params["protocol"]["phases_per_period"])
+    steps_per, dt = model.steps_per_period(params["physics"], phases)
+    period = steps_per * dt
+    window = movie_window(record, int(mv["periods"]) * period, 0.0, 0.0, record)
+    every = period / int(mv["frames_per_period"])
+    traj = trajectory(params, int(mv["replica"]), window, max(every, dt))
+    return write_trajectory(traj, path, path.suffix[1:], float(mv["fps"])), traj.sizes["frame"]

@@ -11,7 +11,14 @@ import os
 
 import click
 
-from ..cli import INDEX, THREADS, params_option, trajectory_command, trajectory_options
+from ..cli import (
+    INDEX,
+    THREADS,
+    movie_command,
+    params_option,
+    trajectory_command,
+    trajectory_options,
+)
 from ..config import validate_params
 
 __all__ = ["cli"]
@@ -232,3 +239,18 @@ def trajectory_cmd(params, replica, start, end, every, fmt, out, fps, part):
 
     replay = functools.partial(trajectory, part=part)
     trajectory_command(replay, load(params), replica, start, end, every, fmt, out, fps)
+
+
+@cli.command("movie")
+@params_option
+@click.option("--part", type=click.Choice(["onset", "decay"]), required=True,
+              help="the recorded window the movie shows")  # fmt: skip
+@click.option("--out", type=click.Path(dir_okay=False), required=True)
+@click.argument("run_file", type=click.Path(exists=True, dir_okay=False))
+def movie_cmd(params, part, out, run_file):
+    """The report's movie of one window: one replica around its pile's flow onset or stop
+    (params: the replay's subset, fits and movie; granpipe.drum.layout.movie_params)."""
+    from .layout import load
+    from .trajectory import movie_stage
+
+    movie_command(movie_stage, load(params), part, run_file, out)

@@ -50,6 +50,10 @@ __all__ = [
     "point_of",
     "point_name",
     "point_names",
+    "movie_sim_params",
+    "movie_params",
+    "movie_input",
+    "movie_file",
     "point_sections",
     "rule_params",
     "trajectory_params",
@@ -209,6 +213,35 @@ def trajectory_params(section: Mapping, point: str) -> dict:
     sim = rule_params(sec)["sim"][point]
     n = point_sections(sec)[point]["ensemble"]["n_replicas"]
     return {**sim, "ensemble": {**sim["ensemble"], "n_replicas": n}}
+
+
+def movie_sim_params(point: Mapping) -> dict:
+    """A point's simulation subset (its runs' config hash is this subset's) from its
+    section: :func:`trajectory_keys` and the batch size."""
+    sec = load(point)
+    return {**trajectory_keys(sec), "ensemble": {"batch_size": sec["ensemble"]["batch_size"]}}
+
+
+def movie_params(section: Mapping) -> dict:
+    """``granpipe drum movie``'s subset: the reference point's replay
+    (:func:`trajectory_params`), the fits (the detector that finds the events) and the
+    ``movie`` section."""
+    sec = filled(section)
+    ref = point_names(sec)[0]
+    return {**trajectory_params(sec, ref), "fits": sec["fits"], "movie": sec["movie"]}
+
+
+def movie_input(section: Mapping) -> str:
+    """The run file the movies read: the reference point's batch holding
+    ``movie.replica`` (batch 0 when null)."""
+    sec = filled(section)
+    replica = sec["movie"]["replica"] or 0
+    return run_file(points(sec)[0], replica // int(sec["ensemble"]["batch_size"]))
+
+
+def movie_file(section: Mapping, part: str) -> str:
+    sec = filled(section)
+    return f"movie/{point_names(sec)[0]}_{part}.{sec['movie']['format']}"
 
 
 def n_batches(section: Mapping) -> int:
@@ -478,6 +511,11 @@ def check(section: Mapping) -> dict:
         "drum.ensemble.n_replicas", 2 * sum(batches),
         f"{len(pts)} point(s); raise 'drum.ensemble.batch_size'",
     )  # fmt: skip
+    mv = sec["movie"]
+    n_ref = int(pts[0]["ensemble"]["n_replicas"])
+    if mv["enabled"] and mv["replica"] is not None and int(mv["replica"]) >= n_ref:
+        raise ConfigError(f"config key 'drum.movie.replica' = {mv['replica']} is outside the "
+                          f"reference point's ensemble (replicas 0 .. {n_ref - 1})")  # fmt: skip
     for p in pts:
         st = steps(p)  # times shorter than a step, a pre-rotation of no step
         # a batch's block records (λ, V and the pile's state per block, a few rows each)

@@ -19,12 +19,12 @@ from ..trajectory import (
     TrajectoryError,
     check_replica,
 )
-from .layout import load, point_name, steps
+from .layout import load, movie_sim_params, point_name, steps
 from .model import DrumModel
 from .preparation import prepare
 from .protocol import replica_streams, run_protocol
 
-__all__ = ["WINDOWS", "trajectory", "schedule"]
+__all__ = ["WINDOWS", "trajectory", "schedule", "movie_stage"]
 
 WINDOWS = ("onset", "decay")
 """The drum's recorded windows, each timed from its own t = 0 (docs/drum.md)."""
@@ -79,3 +79,48 @@ def trajectory(params: Mapping, replica: int, window, every: float,
         "window": part,
         "phase": "angle the drum has turned clockwise since the placement [rad]",
     })  # fmt: skip
+
+
+def movie_stage(params: Mapping, part: str, run_file, out) -> tuple:
+    """The report's drum movie of the recorded window ``part`` (docs/watching.md): replica
+    ``movie.replica`` of the point of ``params`` (:func:`granpipe.drum.layout.movie_params`;
+    null: the first replica of ``run_file`` with the event) replayed from
+    ``movie.before_s`` before to ``movie.after_s`` after its pile's onset of sustained flow
+    (``onset``) or its flow's stop (``decay``), found in ``run_file`` by the fits'
+    detector (:func:`granpipe.drum.fits.load_pile`; the window's middle without one), a
+    frame every ``movie.every_s``, written to ``out`` (.mp4 or .gif) at ``movie.fps``.
+    ``run_file`` is checked against the point's runs config hash.
+
+    Returns (path written, frames).
+    """
+    from ..io import check_run_files, config_hash
+    from ..trajectory import check_movie_file, movie_window, write_trajectory
+    from .fits import load_pile
+
+    sec = load(params)
+    mv = sec["movie"]
+    path = check_movie_file(out)
+    if part not in WINDOWS:
+        raise TrajectoryError("windows", f"window {part!r} is not one of {', '.join(WINDOWS)}")
+    labels = check_run_files([run_file], study="drum", point=point_name(sec),
+                             config_hash=config_hash(movie_sim_params(sec)))  # fmt: skip
+    pile = load_pile([run_file], sec["fits"], exclude_flagged=False)  # any replica may be shown
+    if pile is None:
+        raise TrajectoryError("windows", f"{run_file} holds no pile samples")
+    reps = np.asarray(pile.events["replica"], np.int64)
+    times = np.asarray(pile.events["flow_onset" if part == "onset" else "flow_stop"], float)
+    if mv["replica"] is None:
+        found = np.flatnonzero(np.isfinite(times))
+        replica = int(reps[found[0]] if len(found) else reps[0])
+    else:
+        replica = check_replica(mv["replica"], sec["ensemble"]["n_replicas"])
+        if replica not in reps:
+            raise TrajectoryError("replica", f"{run_file} holds replicas "
+                                  f"{labels[0]['replicas']}, not {replica}")  # fmt: skip
+    st = steps(sec)
+    record = (st.onset if part == "onset" else st.decay) * st.dt_s
+    t = times[reps == replica][0]
+    centre = float(t) if np.isfinite(t) else 0.5 * record
+    window = movie_window(centre, float(mv["before_s"]), float(mv["after_s"]), 0.0, record)
+    traj = trajectory(sec, replica, window, float(mv["every_s"]), part)
+    return write_trajectory(traj, path, path.suffix[1:], float(mv["fps"])), traj.sizes["frame"]

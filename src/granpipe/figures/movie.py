@@ -1,7 +1,8 @@
 """Movies of a replayed trajectory (:mod:`granpipe.trajectory`): the disks drawn to scale,
-coloured by speed and, beside, by |δu_i| (by |spin| where the study has no tangent
-vector), over a strip with time, λ̄ and V; MP4 through imageio-ffmpeg, GIF when no ffmpeg
-is at hand.
+coloured by speed (relative to the mobile disks' mean velocity where the dataset's
+``speed_reference`` attribute is ``bed``: the box) and, beside, by |δu_i| (by |spin|
+where the study has no tangent vector), over a strip with time, λ̄ and V; MP4 through
+imageio-ffmpeg, or a GIF (Pillow).
 """
 
 from __future__ import annotations
@@ -55,7 +56,13 @@ def frame_figure(ds: xr.Dataset):
     L = ds.attrs.get("length_unit", "d_s")
     T = ds.attrs.get("time_unit", "s")
     wall = ds["wall"].values.astype(bool)
-    speed = np.hypot(ds["vx"].values, ds["vy"].values)
+    vx, vy = ds["vx"].values, ds["vy"].values
+    speed_label = f"|v_i| [{L}/t0]"
+    if ds.attrs.get("speed_reference") == "bed":  # the box: the bed's flight taken out
+        vx = vx - vx[:, ~wall].mean(axis=1, keepdims=True)
+        vy = vy - vy[:, ~wall].mean(axis=1, keepdims=True)
+        speed_label = f"|v_i − ⟨v⟩| [{L}/t0]"
+    speed = np.hypot(vx, vy)
     mob = speed[:, ~wall]
     top = float(np.percentile(mob, 99)) if mob.size else 1.0
     norms = [Normalize(0.0, top if top > 0 else 1.0)]
@@ -69,7 +76,7 @@ def frame_figure(ds: xr.Dataset):
             float(y.max()) + pad)  # fmt: skip
     panels = []
     for col, (label, norm, cmap) in enumerate(
-        ((f"|v_i| [{L}/t0]", norms[0], "viridis"), (right_label, norms[1], "magma"))
+        ((speed_label, norms[0], "viridis"), (right_label, norms[1], "magma"))
     ):
         ax = fig.add_subplot(grid[0, col])
         ax.set_aspect("equal")
@@ -115,28 +122,52 @@ def frame_figure(ds: xr.Dataset):
     return fig, draw
 
 
-def write_movie(ds: xr.Dataset, path, fps: float = 10.0) -> Path:
-    """Every frame of ``ds`` as a movie at ``path``: MP4 (H.264 through imageio-ffmpeg) for
-    a ``.mp4`` path when ffmpeg is at hand, else a GIF (a ``.mp4`` path then becomes
-    ``.gif``: the path written is returned)."""
-    import imageio.v2 as imageio
+def _frames(ds: xr.Dataset):
+    """Every frame of ``ds`` drawn, as (H, W, 3) uint8 arrays."""
     import matplotlib.pyplot as plt
 
-    p = Path(path)
-    if p.suffix == ".mp4" and movie_suffix() == ".gif":
-        p = p.with_suffix(".gif")
     fig, draw = frame_figure(ds)
-    kwargs = {"fps": float(fps)}
-    if p.suffix == ".mp4":
-        kwargs.update(codec="libx264", macro_block_size=16, quality=7)
-    else:
-        kwargs = {"duration": 1000.0 / float(fps), "loop": 0}
     try:
-        with imageio.get_writer(p, **kwargs) as writer:
-            for k in range(ds.sizes["frame"]):
-                draw(k)
-                fig.canvas.draw()
-                writer.append_data(np.asarray(fig.canvas.buffer_rgba())[..., :3])
+        for k in range(ds.sizes["frame"]):
+            draw(k)
+            fig.canvas.draw()
+            yield np.ascontiguousarray(np.asarray(fig.canvas.buffer_rgba())[..., :3])
     finally:
         plt.close(fig)
+
+
+def _write_mp4(ds: xr.Dataset, tmp: Path, fps: float) -> None:
+    import imageio_ffmpeg
+
+    writer = imageio_ffmpeg.write_frames(str(tmp), (WIDTH_PX, HEIGHT_PX), fps=float(fps),
+                                         codec="libx264", quality=7, macro_block_size=16,
+                                         output_params=["-f", "mp4"])  # fmt: skip
+    writer.send(None)
+    try:
+        for frame in _frames(ds):
+            writer.send(frame)
+    finally:
+        writer.close()
+
+
+def _write_gif(ds: xr.Dataset, tmp: Path, fps: float) -> None:
+    from PIL import Image
+
+    images = [Image.fromarray(f).quantize(colors=255) for f in _frames(ds)]
+    images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:],
+                   duration=round(1000.0 / float(fps)), loop=0)  # fmt: skip
+
+
+def write_movie(ds: xr.Dataset, path, fps: float = 10.0) -> Path:
+    """Every frame of ``ds`` as a movie at ``path``, written atomically
+    (:func:`granpipe.io.atomic_path`): MP4 (H.264 through imageio-ffmpeg, which must find
+    ffmpeg: :func:`movie_suffix`) for a ``.mp4`` path, a GIF (Pillow) for a ``.gif``
+    path."""
+    from ..io import atomic_path
+
+    p = Path(path)
+    if p.suffix not in (".mp4", ".gif"):
+        raise ValueError(f"a movie is a .mp4 or a .gif file, not {p.name}")
+    with atomic_path(p) as tmp:
+        (_write_mp4 if p.suffix == ".mp4" else _write_gif)(ds, tmp, fps)
     return p

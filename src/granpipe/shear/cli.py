@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import click
 
-from ..cli import INDEX, params_option, trajectory_command, trajectory_options
+from ..cli import INDEX, movie_command, params_option, trajectory_command, trajectory_options
 from ..config import validate_params
 
 __all__ = ["cli"]
@@ -28,6 +28,7 @@ _EXTRA = {
     "seed": {"$ref": "#/x-study/properties/fits/properties/seed"},
     "dpi": {"$ref": "#/x-study/properties/figures/properties/dpi"},
     "contrast_phi": {"$ref": "#/x-study/properties/figures/properties/contrast_phi"},
+    "movie": {"$ref": "#/x-study/properties/movie"},
 }
 
 
@@ -109,3 +110,17 @@ def trajectory_cmd(params, replica, start, end, every, fmt, out, fps):
     keys = ("point", "physics", "preparation", "protocol", "events", "n_replicas")
     trajectory_command(trajectory, _checked(params, *keys), replica, start, end, every, fmt,
                        out, fps)  # fmt: skip
+
+
+@cli.command("movie")
+@params_option
+@click.option("--out", type=click.Path(dir_okay=False), required=True)
+@click.argument("run_file", type=click.Path(exists=True, dir_okay=False))
+def movie_cmd(params, out, run_file):
+    """The report's movie: one replica around an event (params: the replay's subset, the
+    runs' hash, events and movie; granpipe.shear.layout.movie_params)."""
+    from .trajectory import movie_stage
+
+    keys = ("point", "physics", "preparation", "protocol", "events", "n_replicas",
+            "runs_config_hash", "movie")  # fmt: skip
+    movie_command(movie_stage, _checked(params, *keys), run_file, out)

@@ -23,7 +23,8 @@ from ..errors import ConfigError
 __all__ = ["check", "FIGURES", "point_name", "wildcards_point", "split_point", "variants",
            "phis", "points", "n_replicas", "batches", "run_file", "fits_file", "physics_for",
            "preparation_for", "runs_params", "fits_params", "summary_params", "figures_params",
-           "run_files", "trajectory_params"]  # fmt: skip
+           "run_files", "trajectory_params", "movie_point", "movie_params", "movie_input",
+           "movie_file"]  # fmt: skip
 
 FIGURES = ("fig1_lambda_vs_phi", "fig2_event_triggered", "fig3_contrast", "fig4_chaos_map",
            "fig5_jamming", "fig6_prediction", "fig7_variants")  # fmt: skip
@@ -165,6 +166,20 @@ def check(cfg: Mapping) -> None:
                           f"'shear.physics.phi' = {phis(cfg)}")  # fmt: skip
     if float(pr["sample_s"]) < float(pr["block_s"]):
         raise ConfigError("config key 'shear.protocol.sample_s' is shorter than 'block_s'")
+    mv = cfg["movie"]
+    if mv["enabled"]:
+        if mv["phi"] is not None and float(mv["phi"]) not in phis(cfg):
+            raise ConfigError(f"config key 'shear.movie.phi' = {mv['phi']} is not one of "
+                              f"'shear.physics.phi' = {phis(cfg)}")  # fmt: skip
+        n = n_replicas(cfg, movie_point(cfg))
+        if int(mv["replica"]) >= n:
+            raise ConfigError(f"config key 'shear.movie.replica' = {mv['replica']} is outside "
+                              f"the point's ensemble (replicas 0 .. {n - 1})")  # fmt: skip
+        if float(mv["before_s"]) + float(mv["after_s"]) > float(pr["record_s"]):
+            raise ConfigError("config keys 'shear.movie.before_s' + 'after_s' exceed "
+                              "'shear.protocol.record_s'")  # fmt: skip
+        if float(mv["every_s"]) < float(cfg["physics"]["dt"]) * float(cfg["physics"]["t0_s"]):
+            raise ConfigError("config key 'shear.movie.every_s' is below the time step")
     span = float(fits["aligned_before_s"]) + float(fits["aligned_after_s"])
     if span >= float(pr["record_s"]) or math.isclose(span, 0.0):
         raise ConfigError("config keys 'shear.fits.aligned_before_s' + 'aligned_after_s' must "
@@ -184,6 +199,35 @@ def trajectory_params(cfg: Mapping, point: str) -> dict:
     """``granpipe shear trajectory``'s subset: the runs' (a replay is the run) and the
     point's replica count (the replicas it may replay)."""
     return {**runs_params(cfg, point), "n_replicas": n_replicas(cfg, point)}
+
+
+def movie_point(cfg: Mapping) -> str:
+    """The movie's point: ``movie.phi`` of the base cell, default its first φ (a φ added
+    to the grid leaves the movie as it is)."""
+    phi = cfg["movie"]["phi"]
+    return point_name(phis(cfg)[0] if phi is None else float(phi))
+
+
+def movie_params(cfg: Mapping) -> dict:
+    """``granpipe shear movie``'s subset: the replay's (:func:`trajectory_params`), the
+    hash of the run files it reads for the events, the detector (all of ``events``) and
+    the ``movie`` section."""
+    from ..io import config_hash
+
+    point = movie_point(cfg)
+    return {**trajectory_params(cfg, point), "events": dict(cfg["events"]),
+            "runs_config_hash": config_hash(runs_params(cfg, point)),
+            "movie": dict(cfg["movie"])}  # fmt: skip
+
+
+def movie_input(cfg: Mapping) -> str:
+    """The run file the movie reads: the batch holding ``movie.replica``."""
+    batch = int(cfg["movie"]["replica"]) // int(cfg["ensemble"]["batch_size"])
+    return run_file(movie_point(cfg), f"{batch:04d}")
+
+
+def movie_file(cfg: Mapping) -> str:
+    return f"movie/{movie_point(cfg)}.{cfg['movie']['format']}"
 
 
 def fits_params(cfg: Mapping, point: str) -> dict:

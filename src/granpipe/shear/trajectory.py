@@ -12,11 +12,17 @@ import numpy as np
 import xarray as xr
 
 from ..seeds import replica_seed
-from ..trajectory import FrameRecorder, FramesComplete, Schedule, check_replica
+from ..trajectory import (
+    FrameRecorder,
+    FramesComplete,
+    Schedule,
+    TrajectoryError,
+    check_replica,
+)
 from .model import ShearCell
 from .protocol import Steps, run_replica
 
-__all__ = ["trajectory", "schedule"]
+__all__ = ["trajectory", "schedule", "movie_stage"]
 
 
 def schedule(params: Mapping, replica: int, window, every: float) -> Schedule:
@@ -56,3 +62,37 @@ def trajectory(params: Mapping, replica: int, window, every: float) -> xr.Datase
         "seed": replica_seed("shear", params["physics"], int(replica)),
         "phase": "angle of the inner ring (turning counter-clockwise at Ω) [rad]",
     })  # fmt: skip
+
+
+def movie_stage(params: Mapping, run_file, out) -> tuple:
+    """The report's shear movie (docs/watching.md): replica ``movie.replica`` of the point
+    replayed around its first event at least ``movie.before_s`` after the record's start
+    (the record's middle if it has none), ``movie.before_s`` before to ``movie.after_s``
+    after it, a frame every ``movie.every_s``, written to ``out`` (.mp4 or .gif) at
+    ``movie.fps``. ``run_file`` is the batch holding the replica, checked against the
+    runs' config hash; the events are the fits' detector (``events``).
+
+    Returns (path written, frames).
+    """
+    from ..io import check_run_files, read_dataset
+    from ..trajectory import check_movie_file, movie_window, write_trajectory
+    from .fits import event_times
+
+    mv = params["movie"]
+    path = check_movie_file(out)
+    replica = check_replica(mv["replica"], params["n_replicas"])
+    check_run_files([run_file], study="shear", point=params["point"],
+                    config_hash=params["runs_config_hash"],
+                    variables=("network_changes",))  # fmt: skip
+    ds = read_dataset(run_file)
+    if replica not in ds["replica"].values:
+        raise TrajectoryError("replica", f"{run_file} does not hold replica {replica}")
+    row = int(np.flatnonzero(ds["replica"].values == replica)[0])
+    times = event_times(ds, params["events"])[row]
+    record = float(params["protocol"]["record_s"])
+    before, after = float(mv["before_s"]), float(mv["after_s"])
+    later = times[times >= before]
+    centre = float(later[0]) if len(later) else 0.5 * record
+    window = movie_window(centre, before, after, 0.0, record)
+    traj = trajectory(params, replica, window, float(mv["every_s"]))
+    return write_trajectory(traj, path, path.suffix[1:], float(mv["fps"])), traj.sizes["frame"]
