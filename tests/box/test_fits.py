@@ -25,8 +25,10 @@ DETECTION = {
     "detachment_gap": 1e-3,
     "detachment_fraction": 0.02,
 }
+# every point in the T_g* fits (the synthetic law holds from Γ = 0.8), weighted barriers
 FITS = {"breakpoints_random": 1, "breakpoints_crystal": 2, "confidence": 0.95,
-        "bootstrap": 200, "N_l": None}  # fmt: skip
+        "bootstrap": 200, "N_l": None, "temperature_points": "all",
+        "crystal_points": "intact", "slip_weights": "weighted"}  # fmt: skip
 
 GAMMA = np.round(np.linspace(0.8, 4.0, 17), 3)
 K_BREAK = {"random": [3.3], "crystal": [2.0, 6.0]}
@@ -128,7 +130,7 @@ def test_segmented_and_arrhenius_fits_cover_the_truth(seed):
     are at most 0.22 of a breakpoint, 0.44 in a slope and 0.55 of a barrier; the bounds
     below are about twice that (an infinite or a useless interval fails)."""
     table = _table(seed)
-    tfits = fits.temperature_fits(table, FITS)
+    tfits = fits.temperature_fits(table, FITS, DETECTION)
     sfits = fits.slip_fits(table, tfits, FITS)
     for (init, n_l, walls), tf in tfits.items():
         assert tf["regions"] == (["A", "B"] if init == "random" else ["A1", "A2", "B"])
@@ -153,7 +155,7 @@ def test_segmented_and_arrhenius_fits_cover_the_truth(seed):
 def test_summary_rows_carry_paper_values_and_fit_cleanly():
     table = _table(4)
     ths = fits.thresholds_table(table, DETECTION)
-    tfits = fits.temperature_fits(table, FITS)
+    tfits = fits.temperature_fits(table, FITS, DETECTION)
     sfits = fits.slip_fits(table, tfits, FITS)
     df = summary_frame(fits.summary_rows(table, ths, tfits, sfits)).set_index("quantity")
     assert df.loc[f"K_m_break_1[N_l=20,init=random,{W6}]", "paper_value"] == 3.3
@@ -170,9 +172,10 @@ def test_summary_rows_carry_paper_values_and_fit_cleanly():
     assert set(ds) == {"phase_diagram", "temperature", "slips"}
 
 
-def _fit_all(table):
+def _fit_all(table, crystal_points="intact"):
+    table = table.assign(used=fits.used_mask(table, crystal_points))
     ths = fits.thresholds_table(table, DETECTION)
-    tfits = fits.temperature_fits(table, FITS)
+    tfits = fits.temperature_fits(table, FITS, DETECTION)
     sfits = fits.slip_fits(table, tfits, FITS)
     return ths, tfits, sfits
 
@@ -198,10 +201,62 @@ def test_a_broken_crystal_point_is_left_out_of_the_crystal_fits():
     df = summary_frame(fits.summary_rows(table, ths, tfits, sfits)).set_index("quantity")
     row = df.loc[f"crystal_intact_points[N_l=20,init=crystal,{W6}]"]
     assert (row["value"], row["n"]) == (16, 17)
-    # without the flag the same point does change the crystal fits
+    # without the flag the same point does change the crystal fits; labelled by their
+    # initialisation (the paper's reading, the default) every crystal point is used
     table.loc[broken, "crystal_intact"] = 1
     ths1, _, _ = _fit_all(table)
     assert not ths1.equals(ths0)
+    table.loc[broken, "crystal_intact"] = 0
+    ths2, _, _ = _fit_all(table, "initialisation")
+    pd.testing.assert_frame_equal(ths2, ths1)
+    with pytest.raises(ValueError, match="crystal_points"):
+        fits.used_mask(table, "whole")
+
+
+def test_the_temperature_break_is_fitted_inside_the_bouncing_bed():
+    """The comoving bed (no detachment below Γ ≈ 1.07) is nearly cold, T_g* ~ 1e-10, and
+    its step to the bouncing bed takes the single breakpoint when every point is fitted;
+    over the bouncing points only, the break in the bouncing bed's law (K_m = 3.3) is
+    found, as the paper's regions A and B both lie inside the bouncing bed."""
+    table = _table(9)
+    comoving = table["detachment_fraction"] <= DETECTION["detachment_fraction"]
+    assert set(table.loc[comoving, "Gamma"]) == {0.8, 1.0}
+    table.loc[comoving, ["T_g", "T_g_sem"]] = [1e-10, 5e-12]
+    key = (  # the random start at N_l = 20
+        "random", 20, Walls(0.6, "shaken", "lever"),
+    )  # fmt: skip
+    bouncing = fits.temperature_fits(table, {**FITS, "temperature_points": "bouncing"},
+                                     DETECTION)[key]  # fmt: skip
+    every = fits.temperature_fits(table, FITS, DETECTION)[key]
+    lo, hi = bouncing["breakpoints_K_m_ci"][0]
+    assert lo <= 3.3 <= hi and bouncing["n_points"] == len(GAMMA) - 2
+    assert every["n_points"] == len(GAMMA)  # ... the step takes the break, far below 3.3
+    assert every["breakpoints_K_m"][0] < 2.0 and every["breakpoints_K_m_ci"][0][1] < 3.3
+    with pytest.raises(ValueError, match="temperature_points"):
+        fits.temperature_fits(table, {**FITS, "temperature_points": "hot"}, DETECTION)
+
+
+def test_both_readings_of_the_barrier_fit_are_given():
+    """The reading of ``slip_weights`` under the region's name, the other with its suffix:
+    unweighted, the least-squares line through ln p_s; weighted, by the points' errors."""
+    from granpipe.analysis import regression
+
+    table = _table(10)
+    key = ("random", 40, Walls(0.6, "shaken", "lever"))
+    g = table[(table["init"] == "random") & (table["N_l"] == 40)].sort_values("Gamma")
+    K, p = g["K_m"].to_numpy(), g["p_s"].to_numpy()
+    plain = regression.arrhenius_fit(K, p_s=p, n_trials=g["n_trials"].to_numpy(), level=0.95)
+    x, y = 1.0 / K[p > 0], np.log(p[p > 0])
+    assert plain.E_b == pytest.approx(-np.polyfit(x, y, 1)[0], rel=1e-9)
+    for main, other in (("unweighted", "weighted"), ("weighted", "unweighted")):
+        cfg = {**FITS, "slip_weights": main}
+        sfits = fits.slip_fits(table, fits.temperature_fits(table, cfg, DETECTION), cfg)[key]
+        assert {"all", f"all_{other}", "A", "B", f"A_{other}", f"B_{other}"} <= set(sfits)
+        unweighted = sfits["all" if main == "unweighted" else "all_unweighted"]
+        assert unweighted.E_b == pytest.approx(plain.E_b, rel=1e-12)
+        weighted = sfits["all" if main == "weighted" else "all_weighted"]
+        assert weighted.E_b != pytest.approx(plain.E_b, rel=1e-6)
+        assert weighted.E_b_ci[0] <= 7.0 <= weighted.E_b_ci[1]
 
 
 def test_wall_settings_are_separate_groups():

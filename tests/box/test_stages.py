@@ -94,16 +94,15 @@ def test_ensemble_flags_and_fits_summary(pipeline):
     summary = read_summary(root / "fits" / "summary.csv")
     assert list(summary.columns) == COLUMNS
     q = set(summary["quantity"])
-    value = summary.set_index("quantity")["value"]
     for init in ("crystal", "random"):
         for mu_w in ("0.6", "0.0"):
             group = f"[N_l=5,init={init},mu_w={mu_w},walls=shaken,torque=lever]"
-            # a crystal group is fitted only from points whose crystal was intact (in this
-            # bed of five rows the bulk window is often empty: nothing certifies a crystal)
-            fitted = init == "random" or value[f"crystal_intact_points{group}"] > 0
+            # points are labelled by their start (fits.crystal_points: initialisation): every
+            # group is fitted, whether or not the crystal check certified a crystal
             for crit in ("bouncing", "detachment", "convection"):
-                assert (f"Gamma_{crit}{group}" in q) == fitted
-            assert (f"E_b_all{group}" in q) == fitted
+                assert f"Gamma_{crit}{group}" in q
+            assert f"E_b_all{group}" in q and f"E_b_all_weighted{group}" in q
+            assert f"crystal_intact_points{group}" in q or init == "random"
     for point in (layout.point_name(*pt) for pt in layout.points(sec)):
         assert f"psi6_at_measurement_start[{point}]" in q
         assert f"dislocations_at_measurement_end[{point}]" in q
@@ -111,7 +110,11 @@ def test_ensemble_flags_and_fits_summary(pipeline):
     n_groups = len(ths.groupby(["init", "mu_w"]).groups)
     assert isinstance(points, pd.DataFrame) and len(points) == 12 and len(ths) == 3 * n_groups
     assert set(points["mu_w"]) == {0.0, 0.6} and n_groups >= 2
-    assert set(temp["name"]) >= {"slope_all", "intercept"}
+    # the T_g* fits take the bouncing points only (fits.temperature_points): here Γ = 2.0
+    # alone, one point per group, so none is fitted
+    calm_points = points[points["Gamma"] == 0.7]
+    assert (calm_points["detachment_fraction"] <= sec["detection"]["detachment_fraction"]).all()
+    assert temp.empty
 
 
 def test_wall_friction_points_share_random_numbers_but_not_physics(pipeline):
@@ -207,7 +210,13 @@ def test_a_grid_of_crystal_starts_only_fits(pipeline, tmp_path):
     intact = summary.set_index("quantity")["value"]
     for mu_w in ("0.6", "0.0"):
         group = f"[N_l=5,init=crystal,mu_w={mu_w},walls=shaken,torque=lever]"
-        assert (f"Gamma_bouncing{group}" in intact) == (intact[f"crystal_intact_points{group}"] > 0)
+        assert f"Gamma_bouncing{group}" in intact  # labelled by their start: always fitted
+    only = {**crystal, "fits": {**crystal["fits"], "crystal_points": "intact"}}
+    stages.fits_stage(layout.fits_params(only), ens, tmp_path / "intact", log=None)
+    kept = read_summary(tmp_path / "intact" / "summary.csv").set_index("quantity")["value"]
+    for mu_w in ("0.6", "0.0"):
+        group = f"[N_l=5,init=crystal,mu_w={mu_w},walls=shaken,torque=lever]"
+        assert (f"Gamma_bouncing{group}" in kept) == (kept[f"crystal_intact_points{group}"] > 0)
     paths = stages.figures_stage(
         layout.figures_params(crystal), tmp_path / "fits",
         [root / f for f in layout.init_files(crystal)], ens, tmp_path / "figures", log=None,
@@ -218,10 +227,10 @@ def test_a_grid_of_crystal_starts_only_fits(pipeline, tmp_path):
     from granpipe.box import fits
 
     table = fits.points_table(ens).assign(crystal_intact=0)
-    table["used"] = fits.used_mask(table)
+    table["used"] = fits.used_mask(table, "intact")
     ths = fits.thresholds_table(table, sec["detection"])
     assert ths.empty and list(ths.columns) == list(fits.THRESHOLD_COLUMNS)
-    tfits = fits.temperature_fits(table, sec["fits"])
+    tfits = fits.temperature_fits(table, sec["fits"], sec["detection"])
     sfits = fits.slip_fits(table, tfits, sec["fits"])
     assert fits.fits_datasets(table, ths, tfits, sfits)["phase_diagram"].sizes["threshold"] == 0
     rows = fits.summary_rows(table, ths, tfits, sfits)

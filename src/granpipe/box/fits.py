@@ -60,6 +60,10 @@ __all__ = [
     "slip_fits",
     "summary_rows",
     "used_mask",
+    "bouncing_mask",
+    "CRYSTAL_POINTS",
+    "TEMPERATURE_POINTS",
+    "SLIP_WEIGHTS",
     "REGION_NAMES",
     "PAPER",
     "Threshold",
@@ -254,10 +258,12 @@ ORDER_ROWS = {
 }
 
 
-def points_table(files: Sequence[str | Path]) -> pd.DataFrame:
+def points_table(
+    files: Sequence[str | Path], crystal_points: str = "initialisation"
+) -> pd.DataFrame:
     """One row per ensemble file: N_l, N, Gamma, K_m, init, the walls (mu_w, side_walls,
-    wall_torque), the measures, the cost and ``used`` (False for a crystal point whose
-    crystal broke before measurement)."""
+    wall_torque), the measures, the cost and ``used`` (:func:`used_mask` under
+    ``crystal_points``)."""
     rows = []
     for f in files:
         ds = read_dataset(f)
@@ -281,14 +287,25 @@ def points_table(files: Sequence[str | Path]) -> pd.DataFrame:
             row[c] = float(ds[c].values)
         rows.append(row)
     table = pd.DataFrame(rows)
-    table["used"] = used_mask(table)
+    table["used"] = used_mask(table, crystal_points)
     order = ["init", *WALL_COLUMNS, "N_l", "Gamma"]
     return table.sort_values(order, kind="stable").reset_index(drop=True)
 
 
-def used_mask(table: pd.DataFrame) -> pd.Series:
-    """True for the points the fits use: every random point, and the crystal points whose
-    crystal was intact when measurement began (``crystal_intact`` = 1)."""
+CRYSTAL_POINTS = ("initialisation", "intact")
+"""Readings of "a crystal point" (``fits.crystal_points``): every point started from the
+crystal, as the paper labels its points (its region A2 *is* defect nucleation in the
+crystal), or only those whose crystal was intact when measurement began."""
+
+
+def used_mask(table: pd.DataFrame, crystal_points: str = "initialisation") -> pd.Series:
+    """True for the points the fits use: every point (``initialisation``: labelled by
+    their start, the paper's reading), or every random point and the crystal points whose
+    crystal was intact when measurement began (``intact``: ``crystal_intact`` = 1)."""
+    if crystal_points not in CRYSTAL_POINTS:
+        raise ValueError(f"crystal_points must be one of {CRYSTAL_POINTS}, not {crystal_points!r}")
+    if crystal_points == "initialisation":
+        return pd.Series(True, index=table.index)
     return (table["init"] != "crystal") | (table["crystal_intact"] == 1)
 
 
@@ -302,7 +319,8 @@ def _groups(table: pd.DataFrame, used_only: bool = True):
     for (init, mu_w, side, torque, n_l), g in table.groupby(
         ["init", *WALL_COLUMNS, "N_l"], sort=True
     ):
-        g = g[used_mask(g)] if used_only else g
+        if used_only:  # a table without the column (built by hand) uses every point
+            g = g[g["used"].astype(bool)] if "used" in g else g
         if len(g):
             yield init, int(n_l), Walls(float(mu_w), side, torque), g.sort_values("Gamma")
 
@@ -354,13 +372,34 @@ def thresholds_table(table: pd.DataFrame, detection: Mapping) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=list(THRESHOLD_COLUMNS))
 
 
-def temperature_fits(table: pd.DataFrame, fits_cfg: Mapping) -> dict:
-    """Segmented fits of ln T_g* vs ln K_m per group: {(init, N_l, walls): dict}."""
+TEMPERATURE_POINTS = ("bouncing", "all")
+"""Points of the T_g* fits (``fits.temperature_points``): those whose bed leaves the plate
+(the paper's regions A and B both lie inside the bouncing bed: "the transition occurs at
+K_m ≃ 3.3 … the energy value at the onset of convection"), or every point (the comoving
+bed's T_g* of 1e-11 … 1e-8 included, whose step to the bouncing bed's ~1e-3 then takes a
+breakpoint)."""
+
+
+def bouncing_mask(table: pd.DataFrame, detection: Mapping) -> np.ndarray:
+    """(n,) bool: the bed leaves the plate — its detachment fraction (the share of the
+    cycle with a gap under the lowest disk) exceeds ``detection.detachment_fraction``."""
+    return table["detachment_fraction"].to_numpy() > float(detection["detachment_fraction"])
+
+
+def temperature_fits(table: pd.DataFrame, fits_cfg: Mapping, detection: Mapping) -> dict:
+    """Segmented fits of ln T_g* vs ln K_m per group over the points of
+    ``fits.temperature_points`` (:data:`TEMPERATURE_POINTS`; ``detection`` flags the
+    bouncing bed, :func:`bouncing_mask`): {(init, N_l, walls): dict}."""
     out = {}
     level = float(fits_cfg["confidence"])
+    which = str(fits_cfg.get("temperature_points", "bouncing"))
+    if which not in TEMPERATURE_POINTS:
+        raise ValueError(f"temperature_points must be one of {TEMPERATURE_POINTS}, not {which!r}")
     for init, n_l, walls, g in _groups(table):
         k = int(fits_cfg[f"breakpoints_{init}"])
         ok = np.isfinite(g["T_g"]) & (g["T_g"] > 0)
+        if which == "bouncing":
+            ok &= bouncing_mask(g, detection)
         g = g[ok]
         sem = g["T_g_sem"].to_numpy()
         sem = sem if np.all(np.isfinite(sem) & (sem > 0)) else None
@@ -392,9 +431,22 @@ def temperature_fits(table: pd.DataFrame, fits_cfg: Mapping) -> dict:
     return out
 
 
+SLIP_WEIGHTS = ("unweighted", "weighted")
+"""Readings of the Arrhenius fit of ln p_s on 1/K_m (``fits.slip_weights``): unweighted
+least squares, its error from the residuals (the paper's "exponential fit functions"
+state no weights), or weighted by each point's error (the scatter over periods, or the
+counts). The other reading's rows carry the suffix ``_weighted`` / ``_unweighted``."""
+
+
 def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
-    """Arrhenius fits per group: {(init, N_l, walls): {region: ArrheniusFit}} incl. "all"."""
+    """Arrhenius fits per group: {(init, N_l, walls): {region: ArrheniusFit}} incl. "all",
+    in the reading of ``fits.slip_weights`` (:data:`SLIP_WEIGHTS`) and, under
+    ``<region>_<other reading>``, the other."""
     level = float(fits_cfg["confidence"])
+    main = str(fits_cfg.get("slip_weights", "unweighted"))
+    if main not in SLIP_WEIGHTS:
+        raise ValueError(f"slip_weights must be one of {SLIP_WEIGHTS}, not {main!r}")
+    other = SLIP_WEIGHTS[1 - SLIP_WEIGHTS.index(main)]
     out = {}
     for init, n_l, walls, g in _groups(table):
         kw = {
@@ -411,21 +463,25 @@ def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
         kw["p_s_sem"] = np.where(np.isfinite(sem) & (sem > 0), sem, np.nan)
         if np.isnan(kw["p_s_sem"]).any():
             kw.pop("p_s_sem")
+        # unweighted: p_s alone (n_trials kept for the zero-count bounds)
+        plain = {"p_s": kw["p_s"], "n_trials": kw["n_trials"]}
         fits = {}
-        try:
-            fits["all"] = regression.arrhenius_fit(K, level=level, **kw)
-        except ValueError:
-            pass
         tf = tfits.get((init, n_l, walls)) or {}
-        if "fit" in tf and tf["n_breakpoints"] > 0:
+        for reading, args in ((main, plain if main == "unweighted" else kw),
+                              (other, plain if other == "unweighted" else kw)):  # fmt: skip
+            suffix = "" if reading == main else f"_{reading}"
             try:
-                fits.update(
-                    regression.arrhenius_by_region(
-                        K, tf["breakpoints_K_m"], tf["regions"], level=level, **kw
-                    )
-                )
+                fits[f"all{suffix}"] = regression.arrhenius_fit(K, level=level, **args)
             except ValueError:
                 pass
+            if "fit" in tf and tf["n_breakpoints"] > 0:
+                try:
+                    by = regression.arrhenius_by_region(
+                        K, tf["breakpoints_K_m"], tf["regions"], level=level, **args
+                    )
+                except ValueError:
+                    continue
+                fits.update({f"{r}{suffix}": f for r, f in by.items()})
         out[(init, n_l, walls)] = fits
     return out
 
@@ -463,7 +519,7 @@ def summary_rows(
         if init == "crystal":
             rows.append(
                 summary_row("box", _fmt_q("crystal_intact_points", init, n_l, walls),
-                            int(used_mask(g).sum()), "1", n=len(g))
+                            int((g["crystal_intact"] == 1).sum()), "1", n=len(g))
             )  # fmt: skip
     for r in ths.itertuples(index=False):
         th = Threshold(

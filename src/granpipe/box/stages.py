@@ -460,11 +460,13 @@ def fits_stage(
 
     out_dir = Path(out_dir)
     _check_inputs(ensemble_files, params["points"], "ensemble", "point", every=True)
-    table = fits.points_table(ensemble_files)
+    table = fits.points_table(
+        ensemble_files, params["fits"].get("crystal_points", "initialisation")
+    )
     ths = fits.thresholds_table(table, params["detection"])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        tfits = fits.temperature_fits(table, params["fits"])
+        tfits = fits.temperature_fits(table, params["fits"], params["detection"])
         sfits = fits.slip_fits(table, tfits, params["fits"])
     datasets = fits.fits_datasets(table, ths, tfits, sfits)
     written = []
@@ -489,10 +491,9 @@ def fits_stage(
 
 def load_fits(fits_dir: str | Path):
     """(points, thresholds, temperature, slips) DataFrames from ``fits/*.nc``; the points
-    carry ``fitted``, whether the fits use them (:func:`~granpipe.box.fits.used_mask`)."""
+    carry ``fitted``, whether the fits use them (their ``used`` column,
+    :func:`~granpipe.box.fits.used_mask`)."""
     import pandas as pd
-
-    from .fits import used_mask
 
     fits_dir = Path(fits_dir)
     phase = read_dataset(fits_dir / "phase_diagram.nc")
@@ -500,7 +501,7 @@ def load_fits(fits_dir: str | Path):
     points = pd.DataFrame({c: phase[c].values for c in pcols})
     for c in ("init", "point", "side_walls", "wall_torque"):
         points[c] = phase[c].values.astype(str)
-    points["fitted"] = used_mask(points)
+    points["fitted"] = points["used"].astype(bool)
     tcols = [d for d in phase.data_vars if phase[d].dims == ("threshold",)]
     ths = pd.DataFrame({c.removeprefix("threshold_"): phase[c].values for c in tcols})
     for c in ("init", "criterion", "status", "side_walls", "wall_torque"):
