@@ -324,3 +324,41 @@ def test_flags_bracket():
     assert (th.low, th.value, th.high) == pytest.approx((1.2, 1.3, 1.4))
     assert (th.ci_low, th.ci_high) == (1.2, 1.4)
     assert threshold_from_flags([1.0, 2.0], [False, False]).status == "above_grid"
+
+
+def test_the_convection_measure_over_the_first_cycles_of_the_record():
+    """s_c² is the mean of s_j² over the cycles looked at (Eq. B2): over 2 of the cycles
+    1, 1, 3, 3 of one replica it is 1, over all 4 sqrt(5); replicas are averaged after
+    the root; a record shorter than asked gives NaN."""
+    s_j = np.array([[1.0, 1.0, 3.0, 3.0], [2.0, 2.0, 2.0, 2.0]])
+    assert fits.convection_after(s_j, 2) == pytest.approx((1.0 + 2.0) / 2)
+    assert fits.convection_after(s_j, 4) == pytest.approx((math.sqrt(5.0) + 2.0) / 2)
+    assert math.isnan(fits.convection_after(s_j, 5))
+
+
+def test_slips_over_a_window_of_periods():
+    p = np.array([[0.0, 0.1, 0.2, np.nan], [0.0, 0.3, 0.2, 0.4]])
+    assert fits.slips_between(p, 0, 2) == pytest.approx(0.1)
+    assert fits.slips_between(p, 2, 4) == pytest.approx((0.2 + 0.2 + 0.4) / 3)
+    assert math.isnan(fits.slips_between(p, 2, 5))
+
+
+def test_the_onset_per_record_length_is_a_criterion_of_its_own():
+    """A table with s_c over the first 8 and 32 cycles gets the onset of each: here s_c
+    over 32 cycles is s_c over 8 shifted by 0.4 in Γ, so is its threshold."""
+    table = _table(11)
+    table["s_c_8"] = table["s_c"]
+    table["s_c_32"] = np.exp(2.0 * (table["Gamma"] - np.where(table["init"] == "random",
+                                                               1.5, 2.3)))  # fmt: skip
+    table["s_c_200"] = np.nan  # longer than the record: no criterion
+    ths = fits.thresholds_table(table, DETECTION)
+    assert set(ths["criterion"]) == {"bouncing", "detachment", "convection",
+                                     "convection_8periods", "convection_32periods"}  # fmt: skip
+    by = {(r.init, r.N_l, r.criterion): r.Gamma for r in ths.itertuples()}
+    assert by[("random", 20, "convection_8periods")] == pytest.approx(1.9, abs=1e-9)
+    assert by[("random", 20, "convection_32periods")] == pytest.approx(1.5, abs=1e-9)
+    rows = fits.summary_rows(table.assign(p_s_0_50=0.01, p_s_50_200=np.nan), ths, {}, {})
+    names = {r["quantity"] for r in rows}
+    assert f"Gamma_convection_32periods[N_l=40,init=crystal,{W6}]" in names
+    assert any(n.startswith("p_s_periods_0_50[") for n in names)
+    assert not any(n.startswith("p_s_periods_50_200[") for n in names)

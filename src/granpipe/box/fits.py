@@ -60,6 +60,8 @@ __all__ = [
     "slip_fits",
     "summary_rows",
     "used_mask",
+    "convection_after",
+    "slips_between",
     "bouncing_mask",
     "CRYSTAL_POINTS",
     "TEMPERATURE_POINTS",
@@ -258,12 +260,45 @@ ORDER_ROWS = {
 }
 
 
+def convection_after(s_j: np.ndarray, n_periods: int) -> float:
+    """s_c of Eq. (B2) over the first ``n_periods`` cycles of each replica, averaged over
+    the replicas as the point's s_c is [σ]; NaN when the record is shorter.
+
+    Parameters
+    ----------
+    s_j : (replicas, periods) float [σ], Eq. (B1) per cycle
+    """
+    s_j = np.atleast_2d(np.asarray(s_j, dtype=np.float64))
+    if n_periods > s_j.shape[1]:
+        return math.nan
+    return float(np.mean(np.sqrt(np.nanmean(s_j[:, :n_periods] ** 2, axis=1))))
+
+
+def slips_between(p_s_period: np.ndarray, first: int, last: int) -> float:
+    """p_s over the measured periods ``first`` … ``last`` − 1 (0 the first measured), all
+    replicas pooled as the point's p_s is; NaN when the record is shorter than ``last``.
+
+    Parameters
+    ----------
+    p_s_period : (replicas, periods) float, the fraction of bulk disks slipping per period
+    """
+    p = np.atleast_2d(np.asarray(p_s_period, dtype=np.float64))
+    if last > p.shape[1] or not np.isfinite(p[:, first:last]).any():
+        return math.nan
+    return float(np.nanmean(p[:, first:last]))
+
+
 def points_table(
-    files: Sequence[str | Path], crystal_points: str = "initialisation"
+    files: Sequence[str | Path],
+    crystal_points: str = "initialisation",
+    records: Sequence[int] = (),
+    slip_windows: Sequence[Sequence[int]] = (),
 ) -> pd.DataFrame:
     """One row per ensemble file: N_l, N, Gamma, K_m, init, the walls (mu_w, side_walls,
     wall_torque), the measures, the cost and ``used`` (:func:`used_mask` under
-    ``crystal_points``)."""
+    ``crystal_points``); ``s_c_<n>`` for each record length n of ``records``
+    (:func:`convection_after`) and ``p_s_<a>_<b>`` for each window [a, b) of measured
+    periods of ``slip_windows`` (:func:`slips_between`)."""
     rows = []
     for f in files:
         ds = read_dataset(f)
@@ -285,6 +320,10 @@ def points_table(
         }
         for c in _COLUMNS:
             row[c] = float(ds[c].values)
+        for n in records:
+            row[f"s_c_{int(n)}"] = convection_after(ds["s_j"].values, int(n))
+        for a, b in slip_windows:
+            row[f"p_s_{int(a)}_{int(b)}"] = slips_between(ds["p_s_period"].values, int(a), int(b))
         rows.append(row)
     table = pd.DataFrame(rows)
     table["used"] = used_mask(table, crystal_points)
@@ -341,11 +380,25 @@ THRESHOLD_COLUMNS = (
 a grid of crystal starts none of which stayed intact)."""
 
 
+def _criteria(table: pd.DataFrame) -> dict:
+    """:data:`CRITERIA` and, for each record length n the table holds (``s_c_<n>``, not
+    longer than every point's record), ``convection_<n>periods``: Eq. (B2) over the
+    first n cycles (the onset as a function of how long one looks)."""
+    out = dict(CRITERIA)
+    for col in table.columns:
+        if col.startswith("s_c_") and col[4:].isdigit():
+            if table[col].notna().all():
+                out[f"convection_{col[4:]}periods"] = (col, "convection_s_c", "log")
+    return out
+
+
 def thresholds_table(table: pd.DataFrame, detection: Mapping) -> pd.DataFrame:
-    """Thresholds in Γ per (init, N_l, criterion), with the bracketing grid points."""
+    """Thresholds in Γ per (init, N_l, criterion), with the bracketing grid points; the
+    criteria of :func:`_criteria`."""
     rows = []
+    criteria = _criteria(table)
     for init, n_l, walls, g in _groups(table):
-        for name, (col, key, scale) in CRITERIA.items():
+        for name, (col, key, scale) in criteria.items():
             crit = float(detection[key])
             values = g[col].to_numpy()
             if scale == "log":
@@ -510,11 +563,14 @@ def summary_rows(
 ) -> list[dict]:
     """Rows of ``summary.csv`` (docs/results.md); quantities name N_l and init."""
     rows = []
-    for r in table.itertuples(index=False):
+    windows = [c for c in table.columns if c.startswith("p_s_") and c != "p_s_sem"]
+    for r in table.to_dict("records"):
         for name, col in ORDER_ROWS.items():
-            rows.append(
-                summary_row("box", f"{name}[{r.point}]", getattr(r, col), "1", n=r.replicas)
-            )
+            rows.append(summary_row("box", f"{name}[{r['point']}]", r[col], "1", n=r["replicas"]))
+        for col in windows:  # p_s over a window of measured periods ("p_s_0_50": 1-50)
+            if math.isfinite(r[col]):
+                name = f"{col.replace('p_s', 'p_s_periods')}[{r['point']}]"
+                rows.append(summary_row("box", name, r[col], "1", n=r["replicas"]))
     for init, n_l, walls, g in _groups(table, used_only=False):
         if init == "crystal":
             rows.append(

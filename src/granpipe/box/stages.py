@@ -460,9 +460,11 @@ def fits_stage(
 
     out_dir = Path(out_dir)
     _check_inputs(ensemble_files, params["points"], "ensemble", "point", every=True)
+    fcfg = params["fits"]
     table = fits.points_table(
-        ensemble_files, params["fits"].get("crystal_points", "initialisation")
-    )
+        ensemble_files, fcfg.get("crystal_points", "initialisation"),
+        records=fcfg.get("onset_records", ()), slip_windows=fcfg.get("slip_windows", ()),
+    )  # fmt: skip
     ths = fits.thresholds_table(table, params["detection"])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
