@@ -24,9 +24,13 @@ def test_version_matches_package():
 
 
 def test_every_study_stage_has_help():
+    """Every study of the registry (``granpipe.config.STUDIES``) and each of its stages."""
+    from granpipe.config import STUDIES
+
     group = cli
     assert isinstance(group, StudyGroup)
-    studies = [s for s in group.list_commands(None) if s in ("drum", "column", "box")]
+    studies = [s for s in group.list_commands(None) if s in STUDIES]
+    assert studies and set(studies) == set(STUDIES), studies
     for study in studies:
         sub = group.get_command(None, study)
         for stage in sub.list_commands(None):

@@ -164,6 +164,10 @@ def _quick(repo):
         (("drum", "figures", "snapshot_batch"), 7, "drum.figures.snapshot_batch"),
         (("drum", "ensemble", "n_replicas"), 10**6, "simulation jobs"),
         (("box", "fits", "N_l"), 33, "box.fits.N_l"),
+        (("box", "physics", "steps_per_contact"), 1e-6, "'box.physics.steps_per_contact' = 1e-06"),
+        (("box", "physics", "steps_per_contact"), 1.5, "unstable below 1.57 steps"),
+        (("box", "physics", "gamma_n"), 3000.0, "'box.physics.gamma_n' = 3000.0: the contact"),
+        (("results",), "README.md", "'results' = 'README.md' is an existing file"),
         # the report's movies: a point and a replica the scale runs
         (("drum", "movie", "replica"), 2, "'drum.movie.replica' = 2 is outside"),
         (("shear", "movie", "phi"), 0.9, "'shear.movie.phi' = 0.9 is not one of"),
@@ -227,12 +231,13 @@ def _quick(repo):
         ),
     ],
 )
-def test_refusals_before_any_job_name_the_key(repo, path, value, match):
+def test_refusals_before_any_job_name_the_key(repo, path, value, match, monkeypatch):
     """NaN and inf anywhere, fit windows outside the record or reversed, min > max, the
     snapshot batch beyond the batches, a plan too large to build, a grid selection not in
     the grid, a smooth sign of zero width, refinements that are not nested, a return-map
     window longer than the measured taps or shorter than two longest periods, a period
     below 1, a tolerance that is not a positive number."""
+    monkeypatch.chdir(repo)  # paths in the config are relative to the working directory
     cfg = _quick(repo)
     _set(cfg, path, value)
     if match is None:  # parts numbered past the rules' three digits

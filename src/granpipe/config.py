@@ -318,6 +318,9 @@ def _check_paths(cfg: Mapping) -> None:
             f"config key 'results' is too long ({len(results.encode())} bytes; at most "
             f"{MAX_RESULTS_LENGTH}, and 255 per folder name)"
         )
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"config key 'results' = {_short(results)} is an existing file, not a "
+                          "folder")  # fmt: skip
 
 
 def _short(value, limit: int = 80) -> str:

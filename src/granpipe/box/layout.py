@@ -137,6 +137,20 @@ def check(section: Mapping) -> None:
             f"config key 'box.physics.Lx' = {lx} holds no crystal row ('box.init.crystal_rows'"
             f" = {rows}: rows of floor(Lx) and floor(Lx) - 1 disks): at least 2 for a crystal"
         )
+    from .model import contact_time, min_steps_per_contact
+
+    physics = section["physics"]
+    try:
+        contact_time(physics)
+    except ValueError:
+        msg = (f"config key 'box.physics.gamma_n' = {physics['gamma_n']}: the contact is "
+               "overdamped (Eq. A5 has no contact time)")  # fmt: skip
+        raise ConfigError(msg) from None
+    spc, bound = float(physics["steps_per_contact"]), min_steps_per_contact(physics)
+    if spc <= bound:
+        raise ConfigError(f"config key 'box.physics.steps_per_contact' = {spc:g}: the explicit "
+                          f"step is unstable below {bound:.3g} steps per contact time "
+                          "(ω0 Δt < 2)")  # fmt: skip
     mv = section.get("movie", {})
     if mv.get("enabled", True):
         _check_movie(section, mv)

@@ -52,6 +52,14 @@ def contact_time(physics: Mapping) -> float:
     return math.pi / math.sqrt(w2)
 
 
+def min_steps_per_contact(physics: Mapping) -> float:
+    """The smallest ``steps_per_contact`` at which the explicit (velocity-Verlet) step is
+    stable on a normal contact: ω0 Δt < 2 with ω0 = sqrt(κ_n / m_eff) and
+    Δt = t_c / steps_per_contact, i.e. steps_per_contact > ω0 t_c / 2 (π/2 undamped)."""
+    w0 = math.sqrt(float(physics["kappa_n"]) / (MASS / 2.0))
+    return w0 * contact_time(physics) / 2.0
+
+
 def nominal_dt(physics: Mapping) -> float:
     """``Δt = t_c / steps_per_contact`` [t0] (used for preparation)."""
     return contact_time(physics) / float(physics["steps_per_contact"])
