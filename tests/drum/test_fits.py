@@ -477,6 +477,9 @@ def test_where_rows_are_empty_with_a_note_when_no_replica_flows(tmp_path):
               "event_size"):  # fmt: skip
         row = r[f"where_{k}"]
         assert np.isnan(row.value) and row.n == 0 and "no replica has an onset" in row.note
+    # so are the averages aligned on the onset: the rows stay, saying why
+    for k in ("onset_lag_aligned", "onset_lag_aligned_tilt"):
+        assert np.isnan(r[k].value) and r[k].n == 0 and "nothing to align on" in r[k].note
     # run files without the per-disk record: the rows say so
     (tmp_path / "off").mkdir()
     r, _ = _pile_fits(synthetic_pile_runs(tmp_path / "off", FLOWS[:4], noise=0.05))

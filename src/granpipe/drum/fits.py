@@ -1321,8 +1321,14 @@ def _aligned_analysis(pile: PileRecords, w: str, cfg: Mapping, q: int, hold: int
     direction = +1 if w == "onset" else -1
     event = "flow_onset" if w == "onset" else "flow_stop"
     n_ev = int(np.isfinite(pile.events[event]).sum())
-    if Zv.size == 0 or n_ev == 0:
-        return [], {}
+    name = "onset_lag_aligned" if w == "onset" else "decay_lag_aligned"
+    if Zv.size == 0 or n_ev == 0:  # the rows stay, empty, saying why (docs/results.md)
+        what = "reaches sustained flow inside the onset window" if w == "onset" else \
+            "stops flowing inside the decay window"  # fmt: skip
+        note = f"no replica {what}: nothing to align on"
+        return [FitResult(name, math.nan, math.nan, "s", n=0, method="aligned lag", note=note),
+                FitResult(f"{name}_tilt", math.nan, math.nan, "degree", n=0,
+                          method="aligned mean tilt at that crossing", note=note)], {}  # fmt: skip
     if c is None:
         (mv, _, count), (ml, _, _), (mt, _, _) = (replica_mean_sem(Z) for Z in (Zv, Zl, Zt))
     else:
@@ -1354,7 +1360,6 @@ def _aligned_analysis(pile: PileRecords, w: str, cfg: Mapping, q: int, hold: int
         cr = first_crossing(tau, bar(ml_), search, direction, hold)
         return np.stack([cr, at(mt_, cr)], axis=-1)
 
-    name = "onset_lag_aligned" if w == "onset" else "decay_lag_aligned"
     what = ("each replica's own onset of sustained flow" if w == "onset"
             else "each replica's own stop of flow after the drum's stop")  # fmt: skip
     held = f"that lasts {cfg['crossing_hold_s']:g} s"
