@@ -11,12 +11,10 @@ code: numba PR #8852, issues #8705 and #8681), so a scalar gather costs eight lo
 four subtractions and four stores per pair. :func:`gather4` takes four listed pairs at
 once: per pair and field (positions, velocities) one two-wide load from each disk's
 ``(x, y)`` in the flat ``2N`` row and one subtraction, the lanes combined in registers
-and stored as row vectors. On the drum pile (Intel core of docs/engine_performance.md,
-round 5) it takes 1.8 ns per pair, against 4.3 for one four-wide subtraction per pair
-from copied per-disk records ``[x, y, vx, vy]`` with lane stores, and 2.9 for those
-records with four pairs' differences transposed in registers (the copy into the
-records cost more than the loads it saved). Lane by lane the arithmetic is the IEEE
-arithmetic of the scalar code, so results are bit-identical.
+and stored as row vectors, reading the flat rows directly rather than copied per-disk
+records (the alternatives and their timings: docs/engine_performance.md, "Round 5").
+Lane by lane the arithmetic is the IEEE arithmetic of the scalar code, so results are
+bit-identical.
 
 Numba's own on-disk cache keys a kernel on its own source file only; the package's
 locator (:mod:`granpipe._jit`) keys every kernel on all jitted sources, this module

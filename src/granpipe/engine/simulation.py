@@ -145,8 +145,8 @@ class Ensemble:
             else:
                 storage[key] = _aligned_copy(a)
         if fmt < 8:
-            # before 8: each contact's smooth piece (three rows of ivec, 1 + piece in the
-            # touch flags; flags now, recounted); before 7: no wall-history perturbations
+            # files of format 7 and older carry three more ivec rows and 1 + a piece index
+            # in the touch flags: cut the rows, keep the flags, recount the stale pairs
             storage["ivec"] = np.ascontiguousarray(storage["ivec"][:, : K.NI])
             storage["touch"] = np.minimum(storage["touch"], 1)
             storage["counters"][..., K.COUNT_STALE] = 1
@@ -404,11 +404,10 @@ def _aligned_copy(a):
 def _aligned(storage: dict) -> dict:
     """``storage`` with every array on a 64-byte cache line (copied where it is not).
 
-    numpy promises 16 bytes, and a run's speed then depended on where ``malloc`` put its
-    arrays: 16 bytes off a line cost 8-9 % of a step (drum forward and tangent, box
-    crystal) on the Intel core of docs/engine_performance.md (round 5). The vector
-    loads and stores of the pair rows (four doubles from an index that is a multiple of
-    4) never split a line when the rows start on one.
+    numpy promises 16 bytes only, so without the copy a run's speed would depend on where
+    ``malloc`` put its arrays. The vector loads and stores of the pair rows (four doubles
+    from an index that is a multiple of 4) never split a line when the rows start on one
+    (measured: docs/engine_performance.md, "Round 5").
     """
     return {
         k: _aligned_copy(v) if isinstance(v, np.ndarray) and v.ctypes.data % _ALIGN else v
@@ -898,8 +897,9 @@ class Simulation:
             If > 0, record block means over ``stride`` steps (``n_steps`` must be a
             multiple); see :class:`Record`.
         tangent : bool
-            Evolve the tangent vector too (drum law; set it first with
-            :meth:`set_tangent` or :meth:`random_tangent`) and record ``local_lyapunov``.
+            Evolve the tangent vector too (every law has tangent dynamics; set it first
+            with :meth:`set_tangent` or :meth:`random_tangent`) and record
+            ``local_lyapunov``.
 
         Returns
         -------
