@@ -172,7 +172,6 @@ def _quick(repo):
         (("drum", "movie", "replica"), 2, "'drum.movie.replica' = 2 is outside"),
         (("shear", "movie", "phi"), 0.9, "'shear.movie.phi' = 0.9 is not one of"),
         (("shear", "movie", "replica"), 5, "'shear.movie.replica' = 5 is outside"),
-        (("shear", "movie", "after_s"), 5.0, "'shear.movie.before_s' + 'after_s'"),
         (("box", "movie", "N_l"), 40, "'box.movie.N_l' = 40 is not in"),
         (("box", "movie", "Gamma"), 2.5, "'box.movie.Gamma' = 2.5 is not in"),
         (("box", "movie", "replica"), 1, "'box.movie.replica' = 1 is outside"),

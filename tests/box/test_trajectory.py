@@ -94,6 +94,11 @@ def test_the_movie_shows_the_records_last_periods(section, point, tmp_path):
     path, frames = box_traj.movie_stage(params, tmp_path / layout.movie_file(section, name)
                                         .replace("movie/", ""))  # fmt: skip
     assert frames == 5 and len(imageio.mimread(path)) == 5
+    # no starts named: every start of the grid
+    grid = {**section["grid"], "inits": ["crystal"]}
+    section = {**section, "grid": grid, "movie": {**section["movie"], "inits": None}}
+    layout.check(section)
+    assert [p.split(",")[2] for p in layout.movie_points(section)] == ["init=crystal"]
     section["movie"]["Gamma"] = 1.0
     with pytest.raises(ConfigError, match="'box.movie.Gamma' = 1.0 is not in"):
         layout.check(section)

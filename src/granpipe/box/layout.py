@@ -172,7 +172,7 @@ def _check_movie(section: Mapping, mv: Mapping) -> None:
             raise ConfigError(f"config key 'box.movie.{key}' = {mv[key]} is not in "
                               f"'box.grid.{key}' = {have}")  # fmt: skip
     inits = list(grid.get("inits", INITS))
-    for init in mv.get("inits", INITS):
+    for init in mv.get("inits") or inits:
         if init not in inits:
             raise ConfigError(f"config key 'box.movie.inits' holds {init!r}, not in "
                               f"'box.grid.inits' = {inits}")  # fmt: skip
@@ -188,13 +188,14 @@ def _check_movie(section: Mapping, mv: Mapping) -> None:
 
 def movie_points(section: Mapping) -> list[str]:
     """The names of the movie's points: ``movie.N_l`` (default the grid's first) at
-    ``movie.Gamma`` (default the grid's largest), one per start of ``movie.inits``, under
-    the first wall setting."""
+    ``movie.Gamma`` (default the grid's largest), one per start of ``movie.inits``
+    (default every start of the grid), under the first wall setting."""
     mv, grid = section["movie"], section["grid"]
     n_l = int(grid["N_l"][0] if mv["N_l"] is None else mv["N_l"])
     gamma = float(max(grid["Gamma"]) if mv["Gamma"] is None else mv["Gamma"])
     walls = wall_settings(section)[0]
-    return [point_name(n_l, gamma, init, walls) for init in mv["inits"]]
+    starts = mv["inits"] or grid.get("inits", INITS)
+    return [point_name(n_l, gamma, init, walls) for init in starts]
 
 
 def movie_params(section: Mapping, point: str) -> dict:

@@ -175,9 +175,6 @@ def check(cfg: Mapping) -> None:
         if int(mv["replica"]) >= n:
             raise ConfigError(f"config key 'shear.movie.replica' = {mv['replica']} is outside "
                               f"the point's ensemble (replicas 0 .. {n - 1})")  # fmt: skip
-        if float(mv["before_s"]) + float(mv["after_s"]) > float(pr["record_s"]):
-            raise ConfigError("config keys 'shear.movie.before_s' + 'after_s' exceed "
-                              "'shear.protocol.record_s'")  # fmt: skip
         if float(mv["every_s"]) < float(cfg["physics"]["dt"]) * float(cfg["physics"]["t0_s"]):
             raise ConfigError("config key 'shear.movie.every_s' is below the time step")
     span = float(fits["aligned_before_s"]) + float(fits["aligned_after_s"])
@@ -202,10 +199,13 @@ def trajectory_params(cfg: Mapping, point: str) -> dict:
 
 
 def movie_point(cfg: Mapping) -> str:
-    """The movie's point: ``movie.phi`` of the base cell, default its first φ (a φ added
-    to the grid leaves the movie as it is)."""
+    """The movie's point: ``movie.phi`` of the base cell, default the first φ listed (a φ
+    added to the list leaves the movie as it is)."""
     phi = cfg["movie"]["phi"]
-    return point_name(phis(cfg)[0] if phi is None else float(phi))
+    if phi is None:
+        listed = cfg["physics"]["phi"]
+        phi = listed[0] if isinstance(listed, list | tuple) else listed
+    return point_name(float(phi))
 
 
 def movie_params(cfg: Mapping) -> dict:
