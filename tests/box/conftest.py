@@ -54,6 +54,7 @@ SECTION = {
         "bouncing_s_b": 1.0 / 30.0,
         "detachment_gap": 1.0e-3,
         "detachment_fraction": 0.02,
+        "roll_significance": 3.0,
     },
     "slips": {
         "displacement": 0.2,

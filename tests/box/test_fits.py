@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from granpipe.analysis.summary import summary_frame
-from granpipe.box import fits
+from granpipe.box import fits, measures
 from granpipe.box.fits import threshold_crossing, threshold_from_flags
 from granpipe.box.layout import Walls
 from granpipe.box.measures import BOUNCING_THRESHOLD, CONVECTION_THRESHOLD
@@ -24,6 +24,7 @@ DETECTION = {
     "bouncing_s_b": 1.0 / 30.0,
     "detachment_gap": 1e-3,
     "detachment_fraction": 0.02,
+    "roll_significance": 3.0,
 }
 # every point in the T_g* fits (the synthetic law holds from Γ = 0.8), weighted barriers
 FITS = {"breakpoints_random": 1, "breakpoints_crystal": 2, "confidence": 0.95,
@@ -88,6 +89,8 @@ def _table(seed, mu_w=0.6, side_walls="shaken"):
                         # at Γ = 1.9 (random) / 2.7 (crystal)
                         "s_b": (1 / 30) * math.exp(4.0 * (g - 1.1)),
                         "s_c": math.exp(2.0 * (g - (1.9 if init == "random" else 2.7))),
+                        # the roll score through 3 at Γ = 2.5
+                        "roll_significance": 5.0 * (g - 1.9),
                         "detachment_fraction": max(0.0, 0.3 * (g - 1.0)),
                         "T_g": tg * math.exp(0.05 * rng.standard_normal()),
                         "T_g_sem": 0.05 * tg,
@@ -109,7 +112,7 @@ def _table(seed, mu_w=0.6, side_walls="shaken"):
 
 def test_thresholds_interpolate_between_bracketing_grid_points():
     ths = fits.thresholds_table(_table(0), DETECTION)
-    assert len(ths) == 2 * 2 * 3
+    assert len(ths) == 2 * 2 * 4
     for r in ths.itertuples():
         assert r.status == "crossed" and r.Gamma_low < r.Gamma < r.Gamma_high
         assert r.Gamma_high - r.Gamma_low == pytest.approx(0.2)
@@ -121,6 +124,8 @@ def test_thresholds_interpolate_between_bracketing_grid_points():
     assert by[("crystal", 20, "convection")] == pytest.approx(2.7, abs=1e-9)
     # detachment 0.3 (Γ - 1) reaches 0.02 at Γ = 1.0667, linear between 1.0 and 1.2
     assert by[("crystal", 40, "detachment")] == pytest.approx(1.0 + 0.02 / 0.3, abs=1e-9)
+    # the roll score 5 (Γ - 1.9) reaches 3 at Γ = 2.5, linear
+    assert by[("random", 20, "rolls")] == pytest.approx(2.5, abs=1e-9)
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
@@ -352,7 +357,7 @@ def test_the_onset_per_record_length_is_a_criterion_of_its_own():
                                                                1.5, 2.3)))  # fmt: skip
     table["s_c_200"] = np.nan  # longer than the record: no criterion
     ths = fits.thresholds_table(table, DETECTION)
-    assert set(ths["criterion"]) == {"bouncing", "detachment", "convection",
+    assert set(ths["criterion"]) == {"bouncing", "detachment", "convection", "rolls",
                                      "convection_8periods", "convection_32periods"}  # fmt: skip
     by = {(r.init, r.N_l, r.criterion): r.Gamma for r in ths.itertuples()}
     assert by[("random", 20, "convection_8periods")] == pytest.approx(1.9, abs=1e-9)
@@ -362,3 +367,19 @@ def test_the_onset_per_record_length_is_a_criterion_of_its_own():
     assert f"Gamma_convection_32periods[N_l=40,init=crystal,{W6}]" in names
     assert any(n.startswith("p_s_periods_0_50[") for n in names)
     assert not any(n.startswith("p_s_periods_50_200[") for n in names)
+
+
+def test_the_roll_score_over_the_first_periods_of_each_replica():
+    """rolls_after maps each replica's first n contrasts to its score and averages the
+    replicas; a record shorter than asked gives NaN, and the table's roll_<n> columns
+    become criteria rolls_<n>periods."""
+    rng = np.random.default_rng(2)
+    c = np.vstack([0.05 + rng.normal(0.0, 0.01, 40), rng.normal(0.0, 0.01, 40)])
+    scores = [measures.roll_significance(row, 32) for row in c]
+    assert fits.rolls_after(c, 32) == pytest.approx(np.mean(scores))
+    assert scores[0] > 10.0 > 3.0 > scores[1]
+    assert math.isnan(fits.rolls_after(c, 41))
+    table = _table(3).assign(roll_8=lambda t: 5.0 * (t["Gamma"] - 2.3))
+    ths = fits.thresholds_table(table, DETECTION)
+    by = {(r.init, r.N_l, r.criterion): r.Gamma for r in ths.itertuples()}
+    assert by[("crystal", 40, "rolls_8periods")] == pytest.approx(2.9, abs=1e-9)

@@ -38,6 +38,7 @@ DETECTION = {
     "bouncing_s_b": 1.0 / 30.0,
     "detachment_gap": 1e-3,
     "detachment_fraction": 0.02,
+    "roll_significance": 3.0,
 }
 SLIPS = {"displacement": 0.2, "min_neighbours": 2, "neighbour_cutoff": 1.2, "surface_depth": 4.0}
 ORDER = {"neighbour_cutoff": 1.2, "threshold": 0.7, "crystal_min_psi6": 0.9}
@@ -462,3 +463,97 @@ def test_crystal_check_perfect_lattice_and_one_dislocation():
     psi6 = np.abs(local_order(bent)["psi6"])
     assert psi6[near].mean() < 0.9 and psi6[near].min() < 0.7
     assert check.psi6 > 0.99
+
+
+# ------------------------------------------------- rolls against diffusion (Eq. B2)
+ROLL_LX, ROLL_H = 20.0, 10.0
+
+
+def _bed_grid():
+    x, z = np.meshgrid(np.arange(20) + 0.5, np.arange(10) + 0.5)
+    return np.column_stack([x.ravel(), z.ravel()])
+
+
+def _diffusing_record(step, periods, seed, bounce=0.0):
+    """Frames of a bed whose disks take independent Gaussian steps (``step`` σ per axis per
+    period); with ``bounce`` the whole bed also jumps by a common Gaussian height (irregular
+    bouncing seen at one phase)."""
+    rng = np.random.default_rng(seed)
+    steps = rng.normal(0.0, step, (periods, 200, 2))
+    steps[..., 1] += rng.normal(0.0, bounce, (periods, 1))
+    return np.concatenate([_bed_grid()[None], _bed_grid() + np.cumsum(steps, axis=0)])
+
+
+def _roll_record(speed, periods, seed, noise=0.03):
+    """Frames of a bed carried by a pair of rolls, up at the centre and down at both side
+    walls at ``speed`` σ per period (stream function ψ ∝ sin(2πx/L_x) sin(πz/H), zero on
+    the walls, floor and surface), plus Gaussian steps of ``noise`` σ."""
+    rng = np.random.default_rng(seed)
+    amp = speed * ROLL_LX / (2 * np.pi)
+
+    def velocity(p):
+        kx, kz = 2 * np.pi / ROLL_LX, np.pi / ROLL_H
+        x, z = p[:, 0], p[:, 1]
+        return np.column_stack([amp * kz * np.sin(kx * x) * np.cos(kz * z),
+                                -amp * kx * np.cos(kx * x) * np.sin(kz * z)])  # fmt: skip
+
+    frames = [_bed_grid()]
+    for _ in range(periods):
+        p = frames[-1].copy()
+        for _ in range(10):  # midpoint rule, 10 substeps per period
+            p = p + 0.1 * velocity(p + 0.05 * velocity(p))
+        frames.append(p + rng.normal(0.0, noise, p.shape))
+    return np.asarray(frames)
+
+
+def _tracer_spread(frames):
+    """s_c of Eq. (B2) of the row at mid-height, over records of 8, 32 and 200 periods."""
+    row = np.nonzero(frames[0, :, 1] == 4.5)[0]
+    return {n: convection_measure(frames[:n, row, 1])[0] for n in (8, 32, 200)}
+
+
+def test_diffusion_crosses_eq_b2_later_in_a_shorter_record_and_never_rolls():
+    """Diffusion makes s_c² = mean_j s_j² grow with the record (s_j² ≈ j D), so on a grid of
+    step sizes Eq. (B2) reports convection at a larger step the shorter one looks, while
+    the roll criterion (a standard normal score without rolls), with or without a bouncing
+    bed, stays below 3 at every record."""
+    grid = np.array([0.02, 0.04, 0.08, 0.16, 0.32, 0.64])
+    s_c = {n: [] for n in (8, 32, 200)}
+    for k, step in enumerate(grid):
+        frames = _diffusing_record(step, 200, seed=k)
+        for n, v in _tracer_spread(frames).items():
+            s_c[n].append(v)
+        for record in (_diffusing_record(step, 200, seed=k, bounce=2.0), frames):
+            c = measures.roll_contrast(record, ROLL_LX)
+            for n in (8, 32, 200):
+                assert measures.roll_significance(c, n) < 3.0
+    from granpipe.box.fits import threshold_crossing
+
+    onset = {n: threshold_crossing(grid, s_c[n], 1.0, scale="log").value for n in s_c}
+    assert onset[8] > onset[32] > onset[200]
+    assert 0.05 < onset[200] < 0.2 and onset[8] > 0.3
+
+
+def test_a_roll_gives_both_criteria_and_the_roll_criterion_sooner():
+    """A pair of rolls deforms the tracer line (s_c > σ over 200 periods) and gives a
+    persistent wall-to-centre contrast c_j ≈ the roll's mean vertical speed difference, so
+    the roll criterion is met at 8 periods already, where Eq. (B2) is not yet."""
+    frames = _roll_record(0.05, 200, seed=1)
+    s_c = _tracer_spread(frames)
+    assert s_c[200] > 1.0 > s_c[8]
+    c = measures.roll_contrast(frames, ROLL_LX)
+    assert measures.roll_significance(c, 8) > 3.0 and measures.roll_significance(c) > 10.0
+    assert 0.02 < np.nanmean(c[:8]) < 0.08
+    # the opposite rolls (up at the walls) give a negative t
+    reverse = _roll_record(-0.05, 32, seed=2)
+    assert measures.roll_significance(measures.roll_contrast(reverse, ROLL_LX)) < -3.0
+
+
+def test_the_roll_score_of_a_bed_without_rolls_is_standard_normal_at_any_record():
+    """Student's t over 8 periods has a standard deviation of sqrt(7/5) = 1.18; the score
+    is mapped to the normal tail, so its spread is 1 over 8 periods as over 200."""
+    rng = np.random.default_rng(5)
+    for n in (8, 200):
+        z = [measures.roll_significance(rng.normal(0.0, 0.1, n)) for _ in range(2000)]
+        assert np.mean(z) == pytest.approx(0.0, abs=0.07)
+        assert np.std(z) == pytest.approx(1.0, abs=0.05)

@@ -99,7 +99,7 @@ def test_ensemble_flags_and_fits_summary(pipeline):
             group = f"[N_l=5,init={init},mu_w={mu_w},walls=shaken,torque=lever]"
             # points are labelled by their start (fits.crystal_points: initialisation): every
             # group is fitted, whether or not the crystal check certified a crystal
-            for crit in ("bouncing", "detachment", "convection"):
+            for crit in ("bouncing", "detachment", "convection", "rolls"):
                 assert f"Gamma_{crit}{group}" in q
             assert f"E_b_all{group}" in q and f"E_b_all_weighted{group}" in q
             assert f"crystal_intact_points{group}" in q or init == "random"
@@ -108,7 +108,7 @@ def test_ensemble_flags_and_fits_summary(pipeline):
         assert f"dislocations_at_measurement_end[{point}]" in q
     points, ths, temp, slips = stages.load_fits(root / "fits")
     n_groups = len(ths.groupby(["init", "mu_w"]).groups)
-    assert isinstance(points, pd.DataFrame) and len(points) == 12 and len(ths) == 3 * n_groups
+    assert isinstance(points, pd.DataFrame) and len(points) == 12 and len(ths) == 4 * n_groups
     assert set(points["mu_w"]) == {0.0, 0.6} and n_groups >= 2
     # the T_g* fits take the bouncing points only (fits.temperature_points): here Γ = 2.0
     # alone, one point per group, so none is fitted
@@ -249,3 +249,13 @@ def test_summary_holds_no_wall_clock_cost(pipeline):
     assert not any("cost" in q for q in summary["quantity"])
     assert len(costs) and all(q.startswith("cost_ns_per_particle_step[") for q in costs["quantity"])
     assert (costs["value"] > 0).all() and set(costs["unit"]) == {"ns"}
+
+
+def test_figures_say_what_record_and_which_reading_they_show():
+    points = pd.DataFrame({"measured_periods": [8, 200], "replicas": [3, 3]})
+    fig3 = stages.figure_reading(points, {}, 3)
+    assert fig3.startswith("record: 8-200 measured periods, 3 replica(s) per point")
+    assert "Eq. (B2)" in fig3 and "rolls" in fig3
+    assert "over the all points" in stages.figure_reading(points, {"temperature_points": "all"}, 4)
+    fig5 = stages.figure_reading(points, {"slip_weights": "weighted"}, 5)
+    assert "fits weighted" in fig5 and "by initialisation" in fig5

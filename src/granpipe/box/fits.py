@@ -51,6 +51,7 @@ from ..analysis import regression
 from ..analysis.summary import summary_row
 from ..io import read_dataset
 from .layout import Walls
+from .measures import roll_significance
 
 __all__ = [
     "points_table",
@@ -246,7 +247,8 @@ _COLUMNS = (
     "s_c", "s_b", "s_b_printed", "detachment_fraction", "max_gap", "T_g", "T_g_sem", "p_s",
     "p_s_sem", "n_slips", "n_trials", "psi6_start", "psi6_end", "hexagonal_start",
     "hexagonal_end", "dislocations_start", "dislocations_end", "launch_ratio",
-    "convection", "bouncing", "detached", "crystal_intact",
+    "convection", "bouncing", "detached", "crystal_intact", "roll_velocity",
+    "roll_significance", "rolls",
 )  # fmt: skip
 
 #: Per-point rows of the crystal check: summary name -> table column.
@@ -274,6 +276,22 @@ def convection_after(s_j: np.ndarray, n_periods: int) -> float:
     return float(np.mean(np.sqrt(np.nanmean(s_j[:, :n_periods] ** 2, axis=1))))
 
 
+def rolls_after(contrast: np.ndarray, n_periods: int) -> float:
+    """The roll criterion's t (:func:`~granpipe.box.measures.roll_significance`) over the
+    first ``n_periods`` periods of each replica, averaged over the replicas as the point's
+    is; NaN when the record is shorter.
+
+    Parameters
+    ----------
+    contrast : (replicas, periods) float [σ], c_j of each replica
+        (:func:`~granpipe.box.measures.roll_contrast`)
+    """
+    c = np.atleast_2d(np.asarray(contrast, dtype=np.float64))
+    if n_periods > c.shape[1]:
+        return math.nan
+    return float(np.nanmean([roll_significance(row, n_periods) for row in c]))
+
+
 def slips_between(p_s_period: np.ndarray, first: int, last: int) -> float:
     """p_s over the measured periods ``first`` … ``last`` − 1 (0 the first measured), all
     replicas pooled as the point's p_s is; NaN when the record is shorter than ``last``.
@@ -296,9 +314,9 @@ def points_table(
 ) -> pd.DataFrame:
     """One row per ensemble file: N_l, N, Gamma, K_m, init, the walls (mu_w, side_walls,
     wall_torque), the measures, the cost and ``used`` (:func:`used_mask` under
-    ``crystal_points``); ``s_c_<n>`` for each record length n of ``records``
-    (:func:`convection_after`) and ``p_s_<a>_<b>`` for each window [a, b) of measured
-    periods of ``slip_windows`` (:func:`slips_between`)."""
+    ``crystal_points``); ``s_c_<n>`` and ``roll_<n>`` for each record length n of
+    ``records`` (:func:`convection_after`, :func:`rolls_after`) and ``p_s_<a>_<b>`` for
+    each window [a, b) of measured periods of ``slip_windows`` (:func:`slips_between`)."""
     rows = []
     for f in files:
         ds = read_dataset(f)
@@ -322,6 +340,7 @@ def points_table(
             row[c] = float(ds[c].values)
         for n in records:
             row[f"s_c_{int(n)}"] = convection_after(ds["s_j"].values, int(n))
+            row[f"roll_{int(n)}"] = rolls_after(ds["roll_contrast"].values, int(n))
         for a, b in slip_windows:
             row[f"p_s_{int(a)}_{int(b)}"] = slips_between(ds["p_s_period"].values, int(a), int(b))
         rows.append(row)
@@ -369,6 +388,7 @@ CRITERIA = {
     "bouncing": ("s_b", "bouncing_s_b", "log"),
     "detachment": ("detachment_fraction", "detachment_fraction", "linear"),
     "convection": ("s_c", "convection_s_c", "log"),
+    "rolls": ("roll_significance", "roll_significance", "linear"),
 }
 
 
@@ -381,14 +401,19 @@ a grid of crystal starts none of which stayed intact)."""
 
 
 def _criteria(table: pd.DataFrame) -> dict:
-    """:data:`CRITERIA` and, for each record length n the table holds (``s_c_<n>``, not
-    longer than every point's record), ``convection_<n>periods``: Eq. (B2) over the
-    first n cycles (the onset as a function of how long one looks)."""
+    """:data:`CRITERIA` and, for each record length n the table holds (``s_c_<n>``,
+    ``roll_<n>``, not longer than every point's record), ``convection_<n>periods`` and
+    ``rolls_<n>periods``: Eq. (B2) and the roll criterion over the first n cycles (the
+    onset as a function of how long one looks)."""
     out = dict(CRITERIA)
     for col in table.columns:
-        if col.startswith("s_c_") and col[4:].isdigit():
-            if table[col].notna().all():
-                out[f"convection_{col[4:]}periods"] = (col, "convection_s_c", "log")
+        for prefix, name, key, scale in (
+            ("s_c_", "convection", "convection_s_c", "log"),
+            ("roll_", "rolls", "roll_significance", "linear"),
+        ):
+            n = col[len(prefix) :]
+            if col.startswith(prefix) and n.isdigit() and table[col].notna().all():
+                out[f"{name}_{n}periods"] = (col, key, scale)
     return out
 
 

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
+from scipy import stats
 from scipy.spatial import cKDTree
 
 from ..analysis.order import ORDER_LABELS, bond_order, classify_order, local_order
@@ -201,6 +202,77 @@ def bouncing_measure(z_tracers: np.ndarray, z_plate: np.ndarray) -> tuple[float,
     height = np.nanmean(z, axis=2) - zb  # ⟨z_j(k)⟩ − z_b(k), (n_cycles, n_phases)
     s_k = np.nanmean(height, axis=0)
     return float(np.sqrt(np.mean((s_k - s_k.mean()) ** 2))), s_k
+
+
+def roll_contrast(positions: np.ndarray, lx: float, sigma: float = 1.0) -> np.ndarray:
+    """Wall-to-centre contrast of the vertical displacement per period, c_j [σ].
+
+    The paper's wall-induced convection (Sec. I): the side walls drag the disks next to
+    them down, so a roll carries the bed down at the walls and up at the centre. Per
+    period j, over the disks of the bed at its start (centre below the free surface,
+    :func:`free_surface_height`: the gas above it is left out),
+
+        c_j = ⟨Δz_i⟩_centre − ⟨Δz_i⟩_walls,   Δz_i = z_i(j + 1) − z_i(j),
+
+    the centre the disks with |x_i − L_x/2| < L_x/4, the walls the others. A motion of the
+    whole bed (irregular bouncing: the frames at the same phase find it at different
+    heights) cancels in the difference, and diffusion gives ⟨c_j⟩ = 0; a roll gives a
+    mean c_j > 0 that persists from period to period.
+
+    Parameters
+    ----------
+    positions : (n_periods + 1, N, 2) float [σ]
+        Positions at the same phase of consecutive periods.
+    lx : float [σ]
+        Box width (side walls at x = 0 and L_x).
+
+    Returns
+    -------
+    (n_periods,) float [σ]; NaN for a period with no bed disk at the centre or at a wall.
+    """
+    pos = np.asarray(positions, dtype=np.float64)
+    if pos.ndim != 3 or pos.shape[0] < 2:
+        raise ValueError("positions must be (n_periods + 1, N, 2) with at least two frames")
+    out = np.full(pos.shape[0] - 1, np.nan)
+    for j in range(pos.shape[0] - 1):
+        x, z = pos[j, :, 0], pos[j, :, 1]
+        bed = z <= free_surface_height(pos[j], sigma)
+        dz = pos[j + 1, :, 1] - z
+        centre = bed & (np.abs(x - 0.5 * lx) < 0.25 * lx)
+        walls = bed & ~centre
+        if centre.any() and walls.any():
+            out[j] = dz[centre].mean() - dz[walls].mean()
+    return out
+
+
+def roll_significance(contrast: np.ndarray, n_periods: int | None = None) -> float:
+    """The roll criterion beside Eq. (B2): how many standard deviations ⟨c_j⟩ lies above 0.
+
+    Student's t = mean(c_j)/SE(c_j) over the first ``n_periods`` periods (all by default),
+    turned into the normal score of the same one-sided tail (scipy.stats: t's survival
+    function with n − 1 degrees of freedom, then the normal's inverse), so that for a bed
+    without rolls (c_j independent, mean zero: diffusion, a bouncing bed) it is a standard
+    normal variable at every record length. A roll's score grows as the square root of
+    the record. Rolls when it exceeds ``detection.roll_significance`` (3: one such bed in
+    ~740 is taken for a roll); a negative score is a roll the other way round.
+
+    Parameters
+    ----------
+    contrast : (n_periods,) float [σ], :func:`roll_contrast`
+
+    Returns
+    -------
+    float; NaN with fewer than two finite c_j, 0 for a bed that does not move (every c_j
+    zero), ±inf for a contrast without scatter.
+    """
+    c = np.asarray(contrast, dtype=np.float64)[:n_periods]
+    c = c[np.isfinite(c)]
+    if c.size < 2:
+        return math.nan
+    se = c.std(ddof=1) / math.sqrt(c.size)
+    if se == 0:
+        return 0.0 if c.mean() == 0 else math.copysign(math.inf, c.mean())
+    return float(stats.norm.isf(stats.t.sf(c.mean() / se, c.size - 1)))
 
 
 def bed_gap(z: np.ndarray, z_plate: np.ndarray, sigma: float = 1.0) -> np.ndarray:
@@ -560,10 +632,11 @@ def point_dataset(
             "p_s", "p_s_sem", "n_slips", "n_trials", "psi6_start", "psi6_end",
             "hexagonal_start", "hexagonal_end", "dislocations_start", "dislocations_end",
             "intact_start", "intact_end", "launch_ratio", "launch_ratio_disk",
-            "plate_contact_fraction", "wall_seconds", "steps",
+            "plate_contact_fraction", "roll_velocity", "roll_significance", "wall_seconds",
+            "steps",
         )
     }  # fmt: skip
-    s_k_all, s_j_all, tg_periods, ps_periods = [], [], [], []
+    s_k_all, s_j_all, tg_periods, ps_periods, roll_periods = [], [], [], [], []
     r_max = float(order["neighbour_cutoff"])
     for r in reps:
         run = runs[r]
@@ -587,6 +660,7 @@ def point_dataset(
             )
             for when, frame, lo in (("start", run.frames[0], lo0), ("end", run.frames[-1], lo1))
         }  # fmt: skip
+        roll = roll_contrast(run.frames, lx)
         tr = run.transient
         per_rep["s_c"].append(s_c)
         per_rep["s_b"].append(s_b)
@@ -611,12 +685,17 @@ def point_dataset(
             per_rep["launch_ratio"].append(math.nan)
             per_rep["launch_ratio_disk"].append(math.nan)
         per_rep["plate_contact_fraction"].append(float(np.mean(run.plate_contacts > 0)))
+        per_rep["roll_velocity"].append(
+            float(np.nanmean(roll)) if np.isfinite(roll).any() else math.nan
+        )
+        per_rep["roll_significance"].append(roll_significance(roll))
         per_rep["wall_seconds"].append(run.wall_seconds)
         per_rep["steps"].append(run.steps)
         s_k_all.append(s_k)
         s_j_all.append(s_j)
         tg_periods.append(tg_p)
         ps_periods.append(sl.per_period)
+        roll_periods.append(roll)
         if r == reps[0]:
             snap = {
                 "positions_start": run.frames[0],
@@ -658,6 +737,8 @@ def point_dataset(
         "launch_ratio": ("1", "largest bed centre-of-mass upward speed in transient / (A omega)"),
         "launch_ratio_disk": ("1", "largest disk upward speed in the transient / (A omega)"),
         "plate_contact_fraction": ("1", "fraction of samples with a disk on the plate"),
+        "roll_velocity": ("sigma", "mean wall-to-centre contrast of dz per period"),
+        "roll_significance": ("1", "roll score: normal score of the mean contrast against zero"),
         "wall_seconds": ("s", "wall time of the runs"),
         "steps": ("1", "time steps run (transient included)"),
     }  # fmt: skip
@@ -691,6 +772,14 @@ def point_dataset(
             ),
             "dislocations_end": _var((), mean("dislocations_end"), *units["dislocations_end"]),
             "launch_ratio": _var((), mean("launch_ratio"), *units["launch_ratio"]),
+            "roll_velocity": _var((), mean("roll_velocity"), *units["roll_velocity"]),
+            "roll_significance": _var((), mean("roll_significance"), *units["roll_significance"]),
+            "rolls": _var(
+                (),
+                int(mean("roll_significance") > float(detection["roll_significance"])),
+                "1",
+                "roll flag: the roll score exceeds detection.roll_significance",
+            ),  # fmt: skip
             "convection": _var(
                 (), int(s_c > float(detection["convection_s_c"])), "1", "convection flag s_c > σ"
             ),
@@ -720,6 +809,12 @@ def point_dataset(
             "p_s_period": _var(
                 ("replica", "slip_period"), np.asarray(ps_periods), "1", "slip fraction per period"
             ),
+            "roll_contrast": _var(
+                ("replica", "slip_period"),
+                np.asarray(roll_periods),
+                "sigma",
+                "c_j: wall-to-centre contrast of the bed's vertical displacement over period j",
+            ),  # fmt: skip
             "positions_start": _var(
                 ("particle", "xy"),
                 snap["positions_start"],

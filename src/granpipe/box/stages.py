@@ -394,6 +394,34 @@ def fit_n_l(fits_cfg: Mapping, n_ls) -> int:
     return int(want) if want is not None and int(want) in n_ls else n_ls[-1]
 
 
+def figure_reading(points, fits_cfg: Mapping, figure: int) -> str:
+    """The subtitle of Fig. 3, 4 or 5: the record its points hold and the readings of the
+    paper the criteria and fits take (``fits.*``; docs/box.md)."""
+
+    def span(values) -> str:
+        v = sorted({int(x) for x in values})
+        return f"{v[0]}" if len(v) == 1 else f"{v[0]}-{v[-1]}"
+
+    record = (
+        f"record: {span(points['measured_periods'])} measured periods, "
+        f"{span(points['replicas'])} replica(s) per point"
+    )
+    if figure == 3:
+        return (
+            f"{record}; convection by Eq. (B2) over the whole record (and over its first n "
+            "cycles: convection_<n>periods), rolls by the wall-to-centre displacement score"
+        )
+    if figure == 4:
+        which = fits_cfg.get("temperature_points", "bouncing")
+        return f"{record}; T_g* regions fitted over the {which} points (fits.temperature_points)"
+    weights = fits_cfg.get("slip_weights", "unweighted")
+    labels = fits_cfg.get("crystal_points", "initialisation")
+    return (
+        f"{record}; slips between cycle starts; Arrhenius fits {weights} "
+        f"(fits.slip_weights), crystal points by {labels} (fits.crystal_points)"
+    )
+
+
 def figure_walls(points) -> layout.Walls:
     """The walls Figures 1 and 3–5 draw: Table I's side-wall friction with the whole box
     shaken (lever torque first) if the grid has it, else the first setting of the table
@@ -594,13 +622,17 @@ def figures_stage(
     if panels:
         fig = figs.fig1_snapshots(panels, float(params["Lx"]))
         written += save_figure(fig, Path(out_dir) / layout.FIGURES[1])
-    written += save_figure(figs.fig3_phase_diagram(points, ths), Path(out_dir) / layout.FIGURES[3])
-    written += save_figure(
-        figs.fig4_granular_temperature(points, temp, n_fit), Path(out_dir) / layout.FIGURES[4]
+    fcfg = params["fits"]
+    fig3 = figs.fig3_phase_diagram(points, ths, reading=figure_reading(points, fcfg, 3))
+    written += save_figure(fig3, Path(out_dir) / layout.FIGURES[3])
+    fig4 = figs.fig4_granular_temperature(
+        points, temp, n_fit, reading=figure_reading(points, fcfg, 4)
     )
-    written += save_figure(
-        figs.fig5_slip_probability(points, slips, temp, n_fit), Path(out_dir) / layout.FIGURES[5]
+    written += save_figure(fig4, Path(out_dir) / layout.FIGURES[4])
+    fig5 = figs.fig5_slip_probability(
+        points, slips, temp, n_fit, reading=figure_reading(points, fcfg, 5)
     )
+    written += save_figure(fig5, Path(out_dir) / layout.FIGURES[5])
     paper_lines = {
         "paper: bouncing just above Γ = 1": PAPER["Gamma_bouncing"],
         "paper: random-start convection, K_m ≈ 3.3": math.sqrt(PAPER["K_m_break_random"]),

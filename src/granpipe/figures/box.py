@@ -47,7 +47,18 @@ __all__ = [
 #: Fig. 1 colours: disordered, hexagonal (green), square (red).
 ORDER_COLORS = {0: "#9e9ecb", 1: "#2ca02c", 2: "#d62728"}
 INIT_MARKERS = {"random": "^", "crystal": "o"}
-CRITERION_COLORS = {"bouncing": "tab:green", "detachment": "tab:olive", "convection": "tab:blue"}
+CRITERION_COLORS = {
+    "bouncing": "tab:green",
+    "detachment": "tab:olive",
+    "convection": "tab:blue",
+    "rolls": "tab:purple",
+}
+
+
+def _reading(fig, reading: str | None):
+    """The record and the fit readings a figure shows, as a small title over it."""
+    if reading:
+        fig.suptitle(reading, fontsize=7, color="0.3")
 
 
 def _nl_colors(n_ls):
@@ -115,7 +126,7 @@ def _beyond_grid(ax, x, lo, hi, status, marker, color, fill, *, ms, step):
                         arrowprops={"arrowstyle": "->", "color": color})  # fmt: skip
 
 
-def fig3_phase_diagram(points: pd.DataFrame, thresholds: pd.DataFrame):
+def fig3_phase_diagram(points: pd.DataFrame, thresholds: pd.DataFrame, reading: str | None = None):
     """Dynamical phase diagram (Fig. 3): thresholds in Γ against N_l, K_m on the right.
 
     Parameters
@@ -124,8 +135,11 @@ def fig3_phase_diagram(points: pd.DataFrame, thresholds: pd.DataFrame):
         Columns N_l, Gamma, init, bouncing, detached, convection (flags per grid point).
     thresholds : DataFrame
         Columns init, N_l, criterion, Gamma, Gamma_low, Gamma_high, status.
+    reading : str, optional
+        The record and the criteria behind it, drawn over the figure.
     """
     fig, ax = plt.subplots(figsize=(8.0, 4.6), layout="constrained")
+    _reading(fig, reading)
     offsets = {"random": -0.6, "crystal": 0.6}
     # grid points: phase found at each (N_l, Γ)
     for init, g in points.groupby("init"):
@@ -197,7 +211,9 @@ def _panels(inits):
     return fig, dict(zip(inits, axes[0], strict=True))
 
 
-def fig4_granular_temperature(points: pd.DataFrame, temperature: pd.DataFrame, fit_n_l: int):
+def fig4_granular_temperature(
+    points: pd.DataFrame, temperature: pd.DataFrame, fit_n_l: int, reading: str | None = None
+):
     """T_g* against K_m (Fig. 4): (a) random, (b) crystal.
 
     Parameters
@@ -207,9 +223,12 @@ def fig4_granular_temperature(points: pd.DataFrame, temperature: pd.DataFrame, f
         ``intercept``), index, value, ci_low, ci_high
     fit_n_l : int
         Linear density whose breakpoints are drawn as dashed lines.
+    reading : str, optional
+        The record and the points fitted, drawn over the figure.
     """
     inits = [i for i in ("random", "crystal") if i in set(points["init"])]
     fig, axes = _panels(inits)
+    _reading(fig, reading)
     colors = _nl_colors(points["N_l"])
     for init, ax in axes.items():
         for n_l, g in points[points["init"] == init].groupby("N_l"):
@@ -250,15 +269,17 @@ def fig4_granular_temperature(points: pd.DataFrame, temperature: pd.DataFrame, f
 
 def fig5_slip_probability(
     points: pd.DataFrame, slips: pd.DataFrame, temperature: pd.DataFrame, fit_n_l: int,
-    bound_cl: float = 0.95,
+    bound_cl: float = 0.95, reading: str | None = None,
 ):  # fmt: skip
     """p_s against 1/K_m (Fig. 5) with Arrhenius fits per region for ``fit_n_l``.
 
     Points without slips are drawn as downward triangles at the exact binomial upper
-    bound (``bound_cl``) on p_s.
+    bound (``bound_cl``) on p_s; ``reading`` (the record and the fit's readings) is drawn
+    over the figure.
     """
     inits = [i for i in ("random", "crystal") if i in set(points["init"])]
     fig, axes = _panels(inits)
+    _reading(fig, reading)
     colors = _nl_colors(points["N_l"])
     for init, ax in axes.items():
         for n_l, g in points[points["init"] == init].groupby("N_l"):
