@@ -167,6 +167,8 @@ def _quick(repo):
         (("box", "physics", "steps_per_contact"), 1e-6, "'box.physics.steps_per_contact' = 1e-06"),
         (("box", "physics", "steps_per_contact"), 1.5, "unstable below 1.57 steps"),
         (("box", "physics", "gamma_n"), 3000.0, "'box.physics.gamma_n' = 3000.0: the contact"),
+        (("box", "protocol", "slip_phases"), 3, "'box.protocol.slip_phases' = 3 does not divide"),
+        (("box", "detection", "roll_significance"), 0.0, "box.detection.roll_significance"),
         (("results",), "README.md", "'results' = 'README.md' is an existing file"),
         # the report's movies: a point and a replica the scale runs
         (("drum", "movie", "replica"), 2, "'drum.movie.replica' = 2 is outside"),

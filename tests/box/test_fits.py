@@ -99,6 +99,9 @@ def _table(seed, mu_w=0.6, side_walls="shaken"):
                         "n_slips": n_slips,
                         "n_trials": trials,
                         "crystal_intact": 1,
+                        "crystal_intact_ramp": 1,
+                        "psi6_ramp": 0.995,
+                        "dislocations_ramp": 0,
                         "psi6_start": 0.99,
                         "psi6_end": 0.98,
                         "hexagonal_start": 1.0,
@@ -383,3 +386,28 @@ def test_the_roll_score_over_the_first_periods_of_each_replica():
     ths = fits.thresholds_table(table, DETECTION)
     by = {(r.init, r.N_l, r.criterion): r.Gamma for r in ths.itertuples()}
     assert by[("crystal", 40, "rolls_8periods")] == pytest.approx(2.9, abs=1e-9)
+
+
+def test_slips_sampled_in_flight_are_fitted_beside_the_cycle_start():
+    """With p_s from the phase of longest flight following its own barrier (5 against the
+    cycle start's 7), the flight rows recover 5 while the default rows keep 7, and each
+    phase's p_s is a row of its point."""
+    table = _table(7)
+    rng = np.random.default_rng(7)
+    K = table["K_m"].to_numpy()
+    n = table["n_trials"].to_numpy()
+    slips = rng.binomial(n, 0.5 * np.exp(-5.0 / K))
+    table = table.assign(
+        p_s_flight=slips / n, p_s_sem_flight=np.nan, n_slips_flight=slips, n_trials_flight=n,
+        flight_phase=0.5, p_s_phase_0of2=table["p_s"], p_s_phase_1of2=slips / n,
+    )  # fmt: skip
+    ths, tfits, sfits = _fit_all(table)
+    fit = sfits[("random", 20, Walls(0.6, "shaken", "lever"))]
+    assert fit["all"].E_b == pytest.approx(7.0, abs=0.7)
+    assert fit["all_flight"].E_b == pytest.approx(5.0, abs=0.5)
+    assert "all_unweighted_flight" in fit  # the other reading (FITS weights the main)
+    names = {r["quantity"] for r in fits.summary_rows(table, ths, tfits, sfits)}
+    assert f"E_b_all_flight[N_l=20,init=random,{W6}]" in names
+    point = table["point"].iloc[0]
+    assert {f"p_s_phase_0of2[{point}]", f"p_s_phase_1of2[{point}]"} <= names
+    assert not any(q.startswith("p_s_periods_") for q in names)  # no window asked for

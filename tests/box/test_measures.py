@@ -557,3 +557,39 @@ def test_the_roll_score_of_a_bed_without_rolls_is_standard_normal_at_any_record(
         z = [measures.roll_significance(rng.normal(0.0, 0.1, n)) for _ in range(2000)]
         assert np.mean(z) == pytest.approx(0.0, abs=0.07)
         assert np.std(z) == pytest.approx(1.0, abs=0.05)
+
+
+def test_slips_at_each_slip_phase_and_the_crystal_at_the_ramp_end(synthetic):
+    """The cycle starts only shift the bed rigidly; the frames half a cycle on hold the slip
+    plane of the synthetic record, and the bed is in flight there in both periods. p_s is
+    then zero at the cycle start and the slip plane's count at phase 1/2, where the flight
+    reading takes it; a dislocated crystal at the ramp's end fails the check there."""
+    f0, _, f2 = synthetic["f"]
+    rigid = np.stack([f0, f0 + 0.1, f0 + 0.2])
+    half = np.stack([f0, f2])[:, None]  # (period, slip phase 1, N, 2)
+    z_tr = np.repeat(synthetic["run"].z_tracers, 1, axis=0)
+    gap = np.full((2, N_K), -1e-5)
+    gap[:, N_K // 2] = 0.2
+    zp, tg = synthetic["run"].z_plate, synthetic["run"].T_g
+    parts = [_part(j, rigid[j : j + 2], z_tr[j : j + 1], zp[j : j + 1], gap[j : j + 1],
+                   tg[j : j + 1]) for j in range(2)]  # fmt: skip
+    for j, p in enumerate(parts):
+        p["phase_positions"] = (("period", "slip_phase", "particle", "xy"),
+                                half[j : j + 1].astype(np.float32))  # fmt: skip
+    core = np.array([10.25, 0.5 + 9.5 * H])
+    parts[0]["positions_ramp_end"] = (("particle", "xy"), edge_dislocation(f0, core))
+    ds = measures.point_dataset({0: measures.concat_parts(parts)}, DETECTION, SLIPS, ORDER, 20.0)
+    np.testing.assert_allclose(ds["slip_phase"].values, [0.0, 0.5])
+    assert ds["p_s_phase"].values[0] == 0.0 == float(ds.p_s)
+    expected = slip_probability(np.stack([f0, f2]), threshold=0.2, min_count=2,
+                                r_max=1.2, bulk_depth=SLIPS["surface_depth"])  # fmt: skip
+    assert expected.n_slips > 30
+    assert int(ds["n_slips_phase"].values[1]) == expected.n_slips
+    np.testing.assert_allclose(ds["flight_phase"].values, [0.0, 1.0])
+    from granpipe.box.fits import phase_slip_columns
+
+    cols = phase_slip_columns(ds)
+    assert cols["flight_phase"] == 0.5 and cols["n_slips_flight"] == expected.n_slips
+    assert cols["p_s_phase_0of2"] == 0.0 and cols["p_s_phase_1of2"] == expected.p_s
+    assert int(ds.crystal_intact_ramp) == 0 and float(ds.dislocations_ramp) >= 2
+    assert int(ds.crystal_intact) == 1  # the cycle starts are the perfect crystal

@@ -101,3 +101,24 @@ def test_blow_up_names_study_point_replica_and_seed(tmp_path):
     for word in ("study=box", "point=N_l=5,init=random", "replica=3", "seed=", "particle="):
         assert word in text
     assert not (tmp_path / "x.nc").exists()
+
+
+def test_slip_frames_at_other_phases_leave_the_run_unchanged(crystal_small):
+    """With four slip phases the cycle starts, tracers and samples are the same bits as with
+    one; the frame of phase k = N_k/4 of period j is the sample of that phase (the plate
+    where the drive puts it a quarter period on); the ramp's end is kept once."""
+    proto = {**PROTOCOL, "transient_periods": 1, "ramp_periods": 0.5}
+    one = _run(PHYSICS, 2.0, crystal_small, range(2), proto)
+    four = _run(PHYSICS, 2.0, crystal_small, range(2), {**proto, "slip_phases": 4})
+    np.testing.assert_array_equal(one.cycle_positions, four.cycle_positions)
+    np.testing.assert_array_equal(one.z_tracers, four.z_tracers)
+    assert one.phase_positions.shape == (2, 0, 33, 2)
+    assert four.phase_positions.shape == (2, 3, 33, 2)
+    n_k = PROTOCOL["phases_per_period"]
+    quarter = four.phase_positions[:, 0, four.tracers, 1]
+    np.testing.assert_array_equal(quarter, four.z_tracers[:, n_k // 4].astype(np.float32))
+    # the ramp ends half a period in: the first transient sample at or after it
+    assert four.drive.ramp_time <= four.ramp_time < four.drive.ramp_time + four.drive.period / n_k
+    np.testing.assert_array_equal(one.ramp_positions, four.ramp_positions)
+    with pytest.raises(ValueError, match="slip_phases = 3"):
+        _run(PHYSICS, 2.0, crystal_small, range(1), {**proto, "slip_phases": 3})

@@ -235,8 +235,9 @@ def test_a_grid_of_crystal_starts_only_fits(pipeline, tmp_path):
     assert fits.fits_datasets(table, ths, tfits, sfits)["phase_diagram"].sizes["threshold"] == 0
     rows = fits.summary_rows(table, ths, tfits, sfits)
     assert {r["quantity"] for r in rows if r["quantity"].startswith("crystal_intact")} == {
-        f"crystal_intact_points[N_l=5,init=crystal,mu_w={m},walls=shaken,torque=lever]"
+        f"crystal_intact_points{when}[N_l=5,init=crystal,mu_w={m},walls=shaken,torque=lever]"
         for m in ("0.6", "0.0")
+        for when in ("", "_ramp_end")
     }
 
 

@@ -39,6 +39,7 @@ the grid points themselves are always reported.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -248,7 +249,7 @@ _COLUMNS = (
     "p_s_sem", "n_slips", "n_trials", "psi6_start", "psi6_end", "hexagonal_start",
     "hexagonal_end", "dislocations_start", "dislocations_end", "launch_ratio",
     "convection", "bouncing", "detached", "crystal_intact", "roll_velocity",
-    "roll_significance", "rolls",
+    "roll_significance", "rolls", "psi6_ramp", "dislocations_ramp", "crystal_intact_ramp",
 )  # fmt: skip
 
 #: Per-point rows of the crystal check: summary name -> table column.
@@ -259,7 +260,29 @@ ORDER_ROWS = {
     "hexagonal_at_measurement_end": "hexagonal_end",
     "dislocations_at_measurement_start": "dislocations_start",
     "dislocations_at_measurement_end": "dislocations_end",
+    "psi6_at_ramp_end": "psi6_ramp",
+    "dislocations_at_ramp_end": "dislocations_ramp",
 }
+
+_FLIGHT = ("p_s", "p_s_sem", "n_slips", "n_trials")
+"""Slip columns that the ``_flight`` reading takes from the slip phase of longest flight."""
+
+
+def phase_slip_columns(ds: xr.Dataset) -> dict:
+    """Columns of a point's slips at each phase of the cycle (``protocol.slip_phases`` = n
+    > 1): ``p_s_phase_<m>of<n>`` (m = 0 the cycle start) and, for the reading "slips
+    sampled in flight", ``<column>_flight`` of :data:`_FLIGHT` at the slip phase whose
+    bed is most often off the plate (``flight_phase``), that phase as ``flight_phase``.
+    Empty with the cycle start alone."""
+    n = int(ds.sizes.get("slip_phase", 1))
+    if n < 2:
+        return {}
+    out = {f"p_s_phase_{m}of{n}": float(ds["p_s_phase"].values[m]) for m in range(n)}
+    m = int(np.argmax(ds["flight_phase"].values))
+    for c in _FLIGHT:
+        out[f"{c}_flight"] = float(ds[f"{c}_phase"].values[m])
+    out["flight_phase"] = float(ds["slip_phase"].values[m])
+    return out
 
 
 def convection_after(s_j: np.ndarray, n_periods: int) -> float:
@@ -343,6 +366,7 @@ def points_table(
             row[f"roll_{int(n)}"] = rolls_after(ds["roll_contrast"].values, int(n))
         for a, b in slip_windows:
             row[f"p_s_{int(a)}_{int(b)}"] = slips_between(ds["p_s_period"].values, int(a), int(b))
+        row.update(phase_slip_columns(ds))
         rows.append(row)
     table = pd.DataFrame(rows)
     table["used"] = used_mask(table, crystal_points)
@@ -561,6 +585,11 @@ def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
                     continue
                 fits.update({f"{r}{suffix}": f for r, f in by.items()})
         out[(init, n_l, walls)] = fits
+    if "p_s_flight" in table.columns:  # the same fits with slips sampled in flight
+        flight = table.assign(**{c: table[f"{c}_flight"] for c in _FLIGHT})
+        flight = flight.drop(columns=[f"{c}_flight" for c in _FLIGHT])
+        for key, fl in slip_fits(flight, tfits, fits_cfg).items():
+            out.setdefault(key, {}).update({f"{r}_flight": f for r, f in fl.items()})
     return out
 
 
@@ -588,7 +617,8 @@ def summary_rows(
 ) -> list[dict]:
     """Rows of ``summary.csv`` (docs/results.md); quantities name N_l and init."""
     rows = []
-    windows = [c for c in table.columns if c.startswith("p_s_") and c != "p_s_sem"]
+    windows = [c for c in table.columns if re.fullmatch(r"p_s_\d+_\d+", c)]
+    phases = [c for c in table.columns if re.fullmatch(r"p_s_phase_\d+of\d+", c)]
     for r in table.to_dict("records"):
         for name, col in ORDER_ROWS.items():
             rows.append(summary_row("box", f"{name}[{r['point']}]", r[col], "1", n=r["replicas"]))
@@ -596,12 +626,18 @@ def summary_rows(
             if math.isfinite(r[col]):
                 name = f"{col.replace('p_s', 'p_s_periods')}[{r['point']}]"
                 rows.append(summary_row("box", name, r[col], "1", n=r["replicas"]))
+        for col in phases:  # p_s between the same phase of consecutive cycles
+            rows.append(summary_row("box", f"{col}[{r['point']}]", r[col], "1", n=r["replicas"]))
     for init, n_l, walls, g in _groups(table, used_only=False):
         if init == "crystal":
-            rows.append(
-                summary_row("box", _fmt_q("crystal_intact_points", init, n_l, walls),
-                            int((g["crystal_intact"] == 1).sum()), "1", n=len(g))
-            )  # fmt: skip
+            for name, col in (
+                ("crystal_intact_points", "crystal_intact"),
+                ("crystal_intact_points_ramp_end", "crystal_intact_ramp"),
+            ):
+                rows.append(
+                    summary_row("box", _fmt_q(name, init, n_l, walls),
+                                int((g[col] == 1).sum()), "1", n=len(g))
+                )  # fmt: skip
     for r in ths.itertuples(index=False):
         th = Threshold(
             r.Gamma, r.Gamma_low, r.Gamma_high, status=r.status, n_crossings=r.n_crossings

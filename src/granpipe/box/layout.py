@@ -101,7 +101,8 @@ def check(section: Mapping) -> None:
     """Cross-key checks of a ``box`` section before any job runs (ConfigError names the
     key): ``fits.N_l`` one of ``grid.N_l``, a transient at least as long as the ramp, a
     plan Snakemake can build (parts numbered in three digits), a box wide enough for a
-    crystal row, and runs that fit in this machine's memory."""
+    crystal row, slip phases among the sampling phases, and runs that fit in this
+    machine's memory."""
     from ..errors import ConfigError
 
     grid = section.get("grid", {})
@@ -154,7 +155,13 @@ def check(section: Mapping) -> None:
     mv = section.get("movie", {})
     if mv.get("enabled", True):
         _check_movie(section, mv)
-    frames = int(pr.get("periods_per_part", 200)) + 1
+    n_k, n_s = int(pr.get("phases_per_period", 64)), int(pr.get("slip_phases", 1))
+    if n_k % n_s:
+        raise ConfigError(
+            f"config key 'box.protocol.slip_phases' = {n_s} does not divide "
+            f"'box.protocol.phases_per_period' = {n_k}: the slip frames are sampling phases"
+        )
+    frames = (int(pr.get("periods_per_part", 200)) + 1) * n_s
     check_memory(
         "box.grid.N_l", max(n_ls), n_disks(section, max(n_ls)) * (BYTES_PER_DISK + 16 * frames)
     )

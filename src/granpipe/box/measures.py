@@ -564,9 +564,11 @@ class ReplicaRun:
     """The parts of one replica joined along the measured periods.
 
     Attributes: ``z_tracers`` (P, N_k, N_t), ``z_plate``, ``bed_gap``, ``T_g``, ``z_cm``,
-    ``vz_cm``, ``plate_contacts`` (P, N_k), ``frames`` (P + 1, N, 2) [σ],
-    ``transient`` dict of (S,) arrays, ``attrs`` of part 0, ``wall_seconds`` and
-    ``steps`` summed over parts.
+    ``vz_cm``, ``plate_contacts`` (P, N_k), ``frames`` (P + 1, N, 2) [σ] at the cycle
+    starts, ``phase_frames`` (P, n_s − 1, N, 2) [σ] at the other slip phases (``n_s``
+    phases in all, ``protocol.slip_phases``), ``ramp_positions`` (N, 2) [σ] when the
+    start-up ramp had ended (None in a run file without it), ``transient`` dict of (S,)
+    arrays, ``attrs`` of part 0, ``wall_seconds`` and ``steps`` summed over parts.
     """
 
     def __init__(self, parts: Sequence[xr.Dataset]):
@@ -580,6 +582,15 @@ class ReplicaRun:
         for p in parts[1:]:
             frames.append(p["positions"].values[1:])
         self.frames = np.concatenate(frames, axis=0).astype(np.float64)
+        if "phase_positions" in first:
+            self.phase_frames = np.concatenate(
+                [p["phase_positions"].values for p in parts], axis=0
+            ).astype(np.float64)
+        else:
+            self.phase_frames = np.empty((self.frames.shape[0] - 1, 0, *self.frames.shape[1:]))
+        self.n_s = self.phase_frames.shape[1] + 1
+        ramp = first.get("positions_ramp_end")
+        self.ramp_positions = None if ramp is None else ramp.values.astype(np.float64)
         self.transient = {
             k[len("transient_") :]: first[k].values
             for k in first.data_vars
@@ -603,6 +614,40 @@ def _sem(values: np.ndarray) -> float:
 
 def _var(dims, data, units, long_name):
     return (dims, data, {"units": units, "long_name": long_name})
+
+
+def _phase_slip_vars(phase_slips: Sequence[Sequence[SlipResult]], flight) -> dict:
+    """p_s at each slip phase (``slip_phase``), all replicas pooled as the point's p_s is,
+    and how often the bed is off the plate at that phase.
+
+    Parameters
+    ----------
+    phase_slips : per replica, the (n_s,) :class:`SlipResult` of each slip phase
+    flight : per replica, (n_s,) fraction of periods with a gap under the bed at the phase
+    """
+    per = [
+        np.concatenate([rep[m].per_period for rep in phase_slips]) for m in range(len(flight[0]))
+    ]
+    p_s = [float(np.nanmean(v)) if np.isfinite(v).any() else math.nan for v in per]
+    count = {
+        key: np.asarray([sum(getattr(rep[m], key) for rep in phase_slips) for m in range(len(per))])
+        for key in ("n_slips", "n_trials")
+    }
+    dims = ("slip_phase",)
+    return {
+        "p_s_phase": _var(dims, np.asarray(p_s), "1", "slip probability per period at the phase"),
+        "p_s_sem_phase": _var(
+            dims, np.asarray([_sem(v) for v in per]), "1", "standard error of p_s_phase"
+        ),
+        "n_slips_phase": _var(dims, count["n_slips"], "1", "slips counted at the phase"),
+        "n_trials_phase": _var(dims, count["n_trials"], "1", "bulk disk-periods at the phase"),
+        "flight_phase": _var(
+            dims,
+            np.mean(np.asarray(flight), axis=0),
+            "1",
+            "fraction of periods with a gap under the bed at the phase (the bed in flight)",
+        ),  # fmt: skip
+    }
 
 
 def point_dataset(
@@ -632,25 +677,34 @@ def point_dataset(
             "p_s", "p_s_sem", "n_slips", "n_trials", "psi6_start", "psi6_end",
             "hexagonal_start", "hexagonal_end", "dislocations_start", "dislocations_end",
             "intact_start", "intact_end", "launch_ratio", "launch_ratio_disk",
-            "plate_contact_fraction", "roll_velocity", "roll_significance", "wall_seconds",
-            "steps",
+            "plate_contact_fraction", "roll_velocity", "roll_significance", "psi6_ramp",
+            "dislocations_ramp", "intact_ramp", "wall_seconds", "steps",
         )
     }  # fmt: skip
     s_k_all, s_j_all, tg_periods, ps_periods, roll_periods = [], [], [], [], []
     r_max = float(order["neighbour_cutoff"])
+    slip_kw = {
+        "threshold": float(slips["displacement"]),
+        "min_count": int(slips["min_neighbours"]),
+        "r_max": float(slips["neighbour_cutoff"]),
+        "bulk_depth": float(slips["surface_depth"]),
+    }
+    n_k = first.z_plate.shape[1]
+    n_s = first.n_s
+    slip_k = [m * n_k // n_s for m in range(n_s)]  # the sampling phase of each slip phase
+    phase_slips: list[list[SlipResult]] = []
+    flight = []
     for r in reps:
         run = runs[r]
         s_c, s_j = convection_measure(run.z_tracers[:, 0, :])
         s_b, s_k = bouncing_measure(run.z_tracers, run.z_plate)
         frac, _ = detachment_fraction(run.bed_gap, tol=float(detection["detachment_gap"]))
         tg_p = run.T_g.mean(axis=1)
-        sl = slip_probability(
-            run.frames,
-            threshold=float(slips["displacement"]),
-            min_count=int(slips["min_neighbours"]),
-            r_max=float(slips["neighbour_cutoff"]),
-            bulk_depth=float(slips["surface_depth"]),
+        sl = slip_probability(run.frames, **slip_kw)
+        phase_slips.append(
+            [sl] + [slip_probability(run.phase_frames[:, m], **slip_kw) for m in range(n_s - 1)]
         )
+        flight.append(np.mean(run.bed_gap[:, slip_k] > float(detection["detachment_gap"]), 0))
         lo0 = local_order(run.frames[0], r_max=r_max, threshold=float(order["threshold"]))
         lo1 = local_order(run.frames[-1], r_max=r_max, threshold=float(order["threshold"]))
         checks = {
@@ -661,6 +715,16 @@ def point_dataset(
             for when, frame, lo in (("start", run.frames[0], lo0), ("end", run.frames[-1], lo1))
         }  # fmt: skip
         roll = roll_contrast(run.frames, lx)
+        if run.ramp_positions is not None:  # the crystal check of start-up damage
+            ramp = crystal_check(run.ramp_positions, lx, r_max=r_max,
+                                 threshold=float(order["threshold"]),
+                                 min_psi6=float(order["crystal_min_psi6"]))  # fmt: skip
+            ramp_check = (ramp.psi6, ramp.dislocations, int(ramp.intact))
+        else:
+            ramp_check = (math.nan, math.nan, 0)
+        ramp_keys = ("psi6_ramp", "dislocations_ramp", "intact_ramp")
+        for key, value in zip(ramp_keys, ramp_check, strict=True):
+            per_rep[key].append(value)
         tr = run.transient
         per_rep["s_c"].append(s_c)
         per_rep["s_b"].append(s_b)
@@ -739,6 +803,9 @@ def point_dataset(
         "plate_contact_fraction": ("1", "fraction of samples with a disk on the plate"),
         "roll_velocity": ("sigma", "mean wall-to-centre contrast of dz per period"),
         "roll_significance": ("1", "roll score: normal score of the mean contrast against zero"),
+        "psi6_ramp": ("1", "bulk mean |psi6| when the start-up ramp has ended"),
+        "dislocations_ramp": ("1", "bulk disks with other than 6 Delaunay neighbours, ramp end"),
+        "intact_ramp": ("1", "bulk |psi6| >= crystal_min_psi6 and no dislocation at ramp end"),
         "wall_seconds": ("s", "wall time of the runs"),
         "steps": ("1", "time steps run (transient included)"),
     }  # fmt: skip
@@ -799,6 +866,15 @@ def point_dataset(
                 "every replica's bulk at measurement start is a defect-free crystal: mean "
                 "|psi6| >= crystal_min_psi6 and no disk with other than 6 Delaunay neighbours",
             ),  # fmt: skip
+            "psi6_ramp": _var((), mean("psi6_ramp"), *units["psi6_ramp"]),
+            "dislocations_ramp": _var((), mean("dislocations_ramp"), *units["dislocations_ramp"]),
+            "crystal_intact_ramp": _var(
+                (),
+                int(all(per_rep["intact_ramp"])),
+                "1",
+                "every replica's bulk is a defect-free crystal when the start-up ramp has ended",
+            ),  # fmt: skip
+            **_phase_slip_vars(phase_slips, flight),
             "s_k": _var(("phase",), np.mean(s_k_all, axis=0), "sigma", "s(k) of Eq. (B3)"),
             "s_j": _var(
                 ("replica", "period"), np.asarray(s_j_all), "sigma", "s_j of Eq. (B1) per cycle"
@@ -837,12 +913,14 @@ def point_dataset(
             "psi6_abs_end": _var(("particle",), snap["psi6_abs_end"], "1", "|psi6| at the end"),
         }
     )
-    n_k = first.z_plate.shape[1]
     ds = xr.Dataset(
         data,
         coords={
             "replica": _var(("replica",), np.asarray(reps), "1", "replica index"),
             "phase": _var(("phase",), np.arange(n_k) / n_k, "1", "phase k/N_k of the cycle"),
+            "slip_phase": _var(
+                ("slip_phase",), np.asarray(slip_k) / n_k, "1", "phase of the slip frames"
+            ),
         },
     )
     a = first.attrs

@@ -18,8 +18,12 @@ One run of a point ``(N_l, Γ, init)`` and replica, in order:
    ``k`` per period: tracer heights ``z_j^i(k)`` (Eqs. B1, B3), plate height ``z_b(k)``,
    gap under the bed, disks touching the plate, instantaneous granular temperature
    (Eq. 2), bed centre of mass. At every cycle start, all positions (float32), for slips
-   (Sec. V) and ψ6/ψ4. Tracers: the row closest to mid-height of the bed at the start of
-   the measurement (:func:`granpipe.box.measures.select_tracers`).
+   (Sec. V) and ψ6/ψ4, and with ``slip_phases`` = n_s > 1 also at the phases
+   k = m N_k/n_s, m = 1 … n_s − 1 (slips seen at other phases of the cycle). Tracers: the
+   row closest to mid-height of the bed at the start of the measurement
+   (:func:`granpipe.box.measures.select_tracers`).
+5. All positions once more when the start-up ramp has ended (the first transient sample
+   at t ≥ t_ramp; t = 0 without a ramp), for the crystal check of start-up damage.
 
 A long run is a chain of *parts* (``periods_per_part`` periods each); part ``p``
 continues from the engine state saved at the end of part ``p - 1`` (shear histories and
@@ -106,6 +110,7 @@ class PartResult:
     z_cm: np.ndarray  # (P, N_k) [σ]
     vz_cm: np.ndarray  # (P, N_k) [σ/t0]
     cycle_positions: np.ndarray  # (P + 1, N, 2) float32 [σ], starts of periods j..j+P
+    phase_positions: np.ndarray  # (P, n_s - 1, N, 2) float32 [σ], the other slip phases
     tracers: np.ndarray  # (N_t,) int
     final_state: dict  # engine arrays at the end of the part
     transient: dict | None  # part 0: (S,) arrays time, z_plate, v_plate, z_cm, vz_cm, ...
@@ -114,6 +119,8 @@ class PartResult:
     steps: int
     wall_seconds: float
     drive: model.Drive
+    ramp_positions: np.ndarray | None = None  # part 0: (N, 2) [σ] when the ramp has ended
+    ramp_time: float = math.nan  # [t0], time of ``ramp_positions``
     extra: dict = field(default_factory=dict)
 
     @property
@@ -156,7 +163,7 @@ def run_part(
     ----------
     physics, protocol : mapping
         ``box.physics`` and ``box.protocol`` (only ``start_phase``, ``ramp_periods``,
-        ``transient_periods``, ``phases_per_period`` are read here).
+        ``transient_periods``, ``phases_per_period``, ``slip_phases`` are read here).
     gamma : float
         Γ = Aω²/g.
     part : int
@@ -178,6 +185,10 @@ def run_part(
         From the engine, unchanged (the caller adds study/point/replica/seed).
     """
     n_k = int(protocol["phases_per_period"])
+    n_s = int(protocol.get("slip_phases", 1))
+    if n_k % n_s:
+        raise ValueError(f"slip_phases = {n_s} does not divide phases_per_period = {n_k}")
+    slip_k = {m * n_k // n_s: m - 1 for m in range(1, n_s)}  # phase k -> index m - 1
     steps_per, dt = model.steps_per_period(physics, n_k)
     chunk = steps_per // n_k
     drive = model.drive_for(physics, protocol, gamma)
@@ -222,6 +233,9 @@ def run_part(
     progress = Progress(log, total, label)
 
     transient = None
+    ramp_positions, ramp_time = None, math.nan
+    if part == 0 and transient_steps == 0:
+        ramp_positions, ramp_time = state.positions.copy(), state.time
     if part == 0 and transient_steps > 0:
         n_samples = -(-transient_steps // chunk)
         tr = {
@@ -243,6 +257,8 @@ def run_part(
             tr["T_g"][s] = tg
             tr["max_vz"][s] = float(vel[:, 1].max())
             tr["plate_contacts"][s] = cont
+            if ramp_positions is None and (t >= drive.ramp_time or s == n_samples):
+                ramp_positions, ramp_time = pos.copy(), t
             if s == n_samples:
                 break
             steps = min(chunk, transient_steps - done)
@@ -267,12 +283,15 @@ def run_part(
     zcm_ = np.empty((n_periods, n_k))
     vzcm_ = np.empty((n_periods, n_k))
     frames = np.empty((n_periods + 1, n, 2), dtype=np.float32)
+    phase_frames = np.empty((n_periods, n_s - 1, n, 2), dtype=np.float32)
     for j in range(n_periods):
         for k in range(n_k):
             t = state.time
             zb, pos, vel, gap, cont, tg, zcm, vzcm = _sample(state, walls, t)
             if k == 0:
                 frames[j] = pos
+            elif k in slip_k:
+                phase_frames[j, slip_k[k]] = pos
             time_[j, k] = t
             z_plate[j, k] = zb
             z_tr[j, k] = pos[tracers, 1]
@@ -298,6 +317,7 @@ def run_part(
         z_cm=zcm_,
         vz_cm=vzcm_,
         cycle_positions=frames,
+        phase_positions=phase_frames,
         tracers=tracers,
         final_state=state_arrays(state),
         transient=transient,
@@ -306,4 +326,6 @@ def run_part(
         steps=total,
         wall_seconds=wall,
         drive=drive,
+        ramp_positions=ramp_positions,
+        ramp_time=ramp_time,
     )

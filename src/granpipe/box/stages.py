@@ -270,6 +270,25 @@ def runs_stage(
         ),  # fmt: skip
         "tracer_index": _var(("tracer",), res.tracers, "1", "indices of the tracer disks"),
     }
+    coords = {}
+    if res.phase_positions.shape[1]:
+        n_s = res.phase_positions.shape[1] + 1
+        data["phase_positions"] = _var(
+            ("period", "slip_phase", "particle", "xy"),
+            res.phase_positions,
+            "sigma",
+            "disk centres at the other slip phases of each measured period",
+        )  # fmt: skip
+        coords["slip_phase"] = _var(
+            ("slip_phase",), np.arange(1, n_s) / n_s, "1", "phase of the cycle of the frames"
+        )
+    if res.ramp_positions is not None:
+        data["positions_ramp_end"] = _var(
+            ("particle", "xy"),
+            res.ramp_positions,
+            "sigma",
+            f"disk centres when the start-up ramp has ended (t = {res.ramp_time:.6g} t0)",
+        )  # fmt: skip
     if res.transient is not None:
         tr = res.transient
         units = {
@@ -292,6 +311,7 @@ def runs_stage(
             "period": _var(("period",), res.periods, "1", "measured period index j"),
             "phase": _var(("phase",), np.arange(n_k) / n_k, "1", "phase k/N_k of the cycle"),
             "frame": _var(("frame",), np.arange(p0, p1 + 1), "1", "measured period at frame"),
+            **coords,
         },
         attrs={
             "study": "box",
