@@ -35,7 +35,7 @@ s_b and the detachment fraction are replica means (with the replica spread when 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -533,6 +533,151 @@ def _var(dims, data, units, long_name):
     return (dims, data, {"units": units, "long_name": long_name})
 
 
+def _nanmean(values) -> float:
+    v = np.asarray(values)
+    return float(np.nanmean(v)) if np.isfinite(v).any() else math.nan
+
+
+@dataclass(frozen=True)
+class _ReplicaMeasures:
+    """The estimators of one replica that the rows of :data:`PER_REPLICA` read."""
+
+    run: ReplicaRun
+    s_c: float
+    s_j: np.ndarray
+    s_b: float
+    s_k: np.ndarray
+    detachment: float
+    tg_periods: np.ndarray
+    slips: SlipResult
+    local: dict[str, dict]
+    checks: dict[str, CrystalCheck]
+    amp_omega: float
+
+    def launch(self, key: str) -> float:
+        """Largest upward speed ``transient_<key>`` over A ω (NaN without a transient)."""
+        tr = self.run.transient
+        if tr and self.amp_omega > 0:
+            return float(np.max(tr[key]) / self.amp_omega)
+        return math.nan
+
+
+def _replica_measures(run: ReplicaRun, detection, slips, order, lx, amp_omega):
+    s_c, s_j = convection_measure(run.z_tracers[:, 0, :])
+    s_b, s_k = bouncing_measure(run.z_tracers, run.z_plate)
+    frac, _ = detachment_fraction(run.bed_gap, tol=float(detection["detachment_gap"]))
+    sl = slip_probability(
+        run.frames,
+        threshold=float(slips["displacement"]),
+        min_count=int(slips["min_neighbours"]),
+        r_max=float(slips["neighbour_cutoff"]),
+        bulk_depth=float(slips["surface_depth"]),
+    )
+    r_max, threshold = float(order["neighbour_cutoff"]), float(order["threshold"])
+    frames = {w: run.frames[i] for w, (i, _) in _WHEN.items()}
+    local = {w: local_order(f, r_max=r_max, threshold=threshold) for w, f in frames.items()}
+    checks = {
+        w: crystal_check(
+            f, lx, r_max=r_max, threshold=threshold,
+            min_psi6=float(order["crystal_min_psi6"]), local=local[w],
+        )
+        for w, f in frames.items()
+    }  # fmt: skip
+    return _ReplicaMeasures(
+        run, s_c, s_j, s_b, s_k, frac, run.T_g.mean(axis=1), sl, local, checks, amp_omega
+    )
+
+
+@dataclass(frozen=True)
+class Measure:
+    """One per-replica quantity of a point: ``<name>_replica`` (replica,) in the dataset.
+
+    ``gather`` reads it from a replica's estimators. ``point`` makes the point's scalar
+    ``<name>``: ``"mean"`` over replicas (NaN-skipping), ``"sum"`` over replicas,
+    ``"pooled_mean"``/``"pooled_sem"`` over every replica's periods of ``pool``
+    (a key of :data:`PERIOD_POOLS`); None keeps the replica values only.
+    """
+
+    name: str
+    units: str
+    long_name: str
+    gather: Callable[[_ReplicaMeasures], float | int]
+    point: str | None = "mean"
+    pool: str | None = None
+
+
+#: Per-period records pooled over replicas, by name.
+PERIOD_POOLS: dict[str, Callable[[_ReplicaMeasures], np.ndarray]] = {
+    "T_g": lambda m: m.tg_periods,
+    "p_s": lambda m: m.slips.per_period,
+}
+
+
+#: Where each snapshot of the measurement is taken: frame index and phrase.
+_WHEN = {"start": (0, "start"), "end": (-1, "the end")}
+
+
+def _crystal_rows() -> tuple[Measure, ...]:
+    """The rows of :func:`crystal_check` at the start and the end, field by field."""
+    fields = (
+        ("psi6", "bulk mean |psi6| at the {when} of the measurement", float, "mean"),
+        ("hexagonal", "fraction of bulk disks with hexagonal local order at {at}", float, "mean"),
+        ("dislocations", "bulk disks with other than 6 Delaunay neighbours at {at}", int, "mean"),
+        ("intact", "bulk |psi6| >= crystal_min_psi6 and no dislocation at {at}", int, None),
+    )
+
+    def gather(field, when, kind):
+        return lambda m: kind(getattr(m.checks[when], field))
+
+    return tuple(
+        Measure(f"{field}_{when}", "1", text.format(when=when, at=at),
+                gather(field, when, kind), point)
+        for field, text, kind, point in fields
+        for when, (_, at) in _WHEN.items()
+    )  # fmt: skip
+
+
+#: The per-replica quantities of a point, in dataset order.
+PER_REPLICA: tuple[Measure, ...] = (
+    Measure("s_c", "sigma", "convection measure s_c (Eqs. B1-B2)", lambda m: m.s_c),
+    Measure("s_b", "sigma", "bouncing measure s_b (spread of s(k) over phases, docs/box.md)",
+            lambda m: m.s_b),
+    Measure("s_b_printed", "sigma", "Eq. (B4) as printed: sqrt(mean_k s(k)^2)",
+            lambda m: float(np.sqrt(np.mean(m.s_k**2)))),
+    Measure("detachment_fraction", "1", "fraction of the cycle with a gap under the bed",
+            lambda m: m.detachment),
+    Measure("max_gap", "sigma", "mean over cycles of the largest gap under the bed",
+            lambda m: float(m.run.bed_gap.max(axis=1).mean())),
+    Measure("T_g", "m*g*sigma", "granular temperature, time average (Eq. 2)",
+            lambda m: float(m.tg_periods.mean()), "pooled_mean", "T_g"),
+    Measure("T_g_sem", "m*g*sigma", "standard error of T_g over periods",
+            lambda m: _sem(m.tg_periods), "pooled_sem", "T_g"),
+    Measure("p_s", "1", "slip probability per period", lambda m: m.slips.p_s,
+            "pooled_mean", "p_s"),
+    Measure("p_s_sem", "1", "standard error of p_s over periods", lambda m: m.slips.sem,
+            "pooled_sem", "p_s"),
+    Measure("n_slips", "1", "slips counted", lambda m: m.slips.n_slips, "sum"),
+    Measure("n_trials", "1", "bulk disk-periods examined", lambda m: m.slips.n_trials, "sum"),
+    *_crystal_rows(),
+    Measure("launch_ratio", "1",
+            "largest bed centre-of-mass upward speed in transient / (A omega)",
+            lambda m: m.launch("vz_cm")),
+    Measure("launch_ratio_disk", "1", "largest disk upward speed in the transient / (A omega)",
+            lambda m: m.launch("max_vz"), None),
+    Measure("plate_contact_fraction", "1", "fraction of samples with a disk on the plate",
+            lambda m: float(np.mean(m.run.plate_contacts > 0)), None),
+    Measure("wall_seconds", "s", "wall time of the runs", lambda m: m.run.wall_seconds, None),
+    Measure("steps", "1", "time steps run (transient included)", lambda m: m.run.steps, None),
+)  # fmt: skip
+
+_POINT_REDUCERS: dict[str, Callable[[np.ndarray], float | int]] = {
+    "mean": _nanmean,
+    "sum": lambda v: int(np.sum(v)),
+    "pooled_mean": _nanmean,
+    "pooled_sem": _sem,
+}
+
+
 def point_dataset(
     runs: Mapping[int, ReplicaRun],
     detection: Mapping,
@@ -541,6 +686,10 @@ def point_dataset(
     lx: float,
 ) -> xr.Dataset:
     """Measures of one point from its replicas (``runs[r]``), as a labelled Dataset.
+
+    The per-replica quantities and their point values are the rows of
+    :data:`PER_REPLICA`; the flags, s(k), the per-period records and the snapshots of
+    replica 0 follow.
 
     Parameters
     ----------
@@ -553,144 +702,22 @@ def point_dataset(
     R = len(reps)
     first = runs[reps[0]]
     amp_omega = float(first.attrs["amplitude"]) * float(first.attrs["omega"])
-    per_rep: dict[str, list] = {
-        k: []
-        for k in (
-            "s_c", "s_b", "s_b_printed", "detachment_fraction", "max_gap", "T_g", "T_g_sem",
-            "p_s", "p_s_sem", "n_slips", "n_trials", "psi6_start", "psi6_end",
-            "hexagonal_start", "hexagonal_end", "dislocations_start", "dislocations_end",
-            "intact_start", "intact_end", "launch_ratio", "launch_ratio_disk",
-            "plate_contact_fraction", "wall_seconds", "steps",
-        )
-    }  # fmt: skip
-    s_k_all, s_j_all, tg_periods, ps_periods = [], [], [], []
-    r_max = float(order["neighbour_cutoff"])
-    for r in reps:
-        run = runs[r]
-        s_c, s_j = convection_measure(run.z_tracers[:, 0, :])
-        s_b, s_k = bouncing_measure(run.z_tracers, run.z_plate)
-        frac, _ = detachment_fraction(run.bed_gap, tol=float(detection["detachment_gap"]))
-        tg_p = run.T_g.mean(axis=1)
-        sl = slip_probability(
-            run.frames,
-            threshold=float(slips["displacement"]),
-            min_count=int(slips["min_neighbours"]),
-            r_max=float(slips["neighbour_cutoff"]),
-            bulk_depth=float(slips["surface_depth"]),
-        )
-        lo0 = local_order(run.frames[0], r_max=r_max, threshold=float(order["threshold"]))
-        lo1 = local_order(run.frames[-1], r_max=r_max, threshold=float(order["threshold"]))
-        checks = {
-            when: crystal_check(
-                frame, lx, r_max=r_max, threshold=float(order["threshold"]),
-                min_psi6=float(order["crystal_min_psi6"]), local=lo,
-            )
-            for when, frame, lo in (("start", run.frames[0], lo0), ("end", run.frames[-1], lo1))
-        }  # fmt: skip
-        tr = run.transient
-        per_rep["s_c"].append(s_c)
-        per_rep["s_b"].append(s_b)
-        per_rep["s_b_printed"].append(float(np.sqrt(np.mean(s_k**2))))
-        per_rep["detachment_fraction"].append(frac)
-        per_rep["max_gap"].append(float(run.bed_gap.max(axis=1).mean()))
-        per_rep["T_g"].append(float(tg_p.mean()))
-        per_rep["T_g_sem"].append(_sem(tg_p))
-        per_rep["p_s"].append(sl.p_s)
-        per_rep["p_s_sem"].append(sl.sem)
-        per_rep["n_slips"].append(sl.n_slips)
-        per_rep["n_trials"].append(sl.n_trials)
-        for when, c in checks.items():
-            per_rep[f"psi6_{when}"].append(c.psi6)
-            per_rep[f"hexagonal_{when}"].append(c.hexagonal)
-            per_rep[f"dislocations_{when}"].append(c.dislocations)
-            per_rep[f"intact_{when}"].append(int(c.intact))
-        if tr and amp_omega > 0:
-            per_rep["launch_ratio"].append(float(np.max(tr["vz_cm"]) / amp_omega))
-            per_rep["launch_ratio_disk"].append(float(np.max(tr["max_vz"]) / amp_omega))
-        else:
-            per_rep["launch_ratio"].append(math.nan)
-            per_rep["launch_ratio_disk"].append(math.nan)
-        per_rep["plate_contact_fraction"].append(float(np.mean(run.plate_contacts > 0)))
-        per_rep["wall_seconds"].append(run.wall_seconds)
-        per_rep["steps"].append(run.steps)
-        s_k_all.append(s_k)
-        s_j_all.append(s_j)
-        tg_periods.append(tg_p)
-        ps_periods.append(sl.per_period)
-        if r == reps[0]:
-            snap = {
-                "positions_start": run.frames[0],
-                "order_start": lo0["order"],
-                "psi6_abs_start": np.abs(lo0["psi6"]),
-                "positions_end": run.frames[-1],
-                "order_end": lo1["order"],
-                "psi6_abs_end": np.abs(lo1["psi6"]),
-            }
-    tg_all = np.concatenate(tg_periods)
-    ps_all = np.concatenate(ps_periods)
-    n_slips = int(np.sum(per_rep["n_slips"]))
-    n_trials = int(np.sum(per_rep["n_trials"]))
-
-    def mean(key):
-        return float(np.nanmean(per_rep[key])) if np.isfinite(per_rep[key]).any() else math.nan
-
-    s_c, s_b, frac = mean("s_c"), mean("s_b"), mean("detachment_fraction")
-    units = {
-        "s_c": ("sigma", "convection measure s_c (Eqs. B1-B2)"),
-        "s_b": ("sigma", "bouncing measure s_b (spread of s(k) over phases, docs/box.md)"),
-        "s_b_printed": ("sigma", "Eq. (B4) as printed: sqrt(mean_k s(k)^2)"),
-        "detachment_fraction": ("1", "fraction of the cycle with a gap under the bed"),
-        "max_gap": ("sigma", "mean over cycles of the largest gap under the bed"),
-        "T_g": ("m*g*sigma", "granular temperature, time average (Eq. 2)"),
-        "T_g_sem": ("m*g*sigma", "standard error of T_g over periods"),
-        "p_s": ("1", "slip probability per period"),
-        "p_s_sem": ("1", "standard error of p_s over periods"),
-        "n_slips": ("1", "slips counted"),
-        "n_trials": ("1", "bulk disk-periods examined"),
-        "psi6_start": ("1", "bulk mean |psi6| at the start of the measurement"),
-        "psi6_end": ("1", "bulk mean |psi6| at the end of the measurement"),
-        "hexagonal_start": ("1", "fraction of bulk disks with hexagonal local order at start"),
-        "hexagonal_end": ("1", "fraction of bulk disks with hexagonal local order at the end"),
-        "dislocations_start": ("1", "bulk disks with other than 6 Delaunay neighbours at start"),
-        "dislocations_end": ("1", "bulk disks with other than 6 Delaunay neighbours at the end"),
-        "intact_start": ("1", "bulk |psi6| >= crystal_min_psi6 and no dislocation at start"),
-        "intact_end": ("1", "bulk |psi6| >= crystal_min_psi6 and no dislocation at the end"),
-        "launch_ratio": ("1", "largest bed centre-of-mass upward speed in transient / (A omega)"),
-        "launch_ratio_disk": ("1", "largest disk upward speed in the transient / (A omega)"),
-        "plate_contact_fraction": ("1", "fraction of samples with a disk on the plate"),
-        "wall_seconds": ("s", "wall time of the runs"),
-        "steps": ("1", "time steps run (transient included)"),
-    }  # fmt: skip
+    ms = [_replica_measures(runs[r], detection, slips, order, lx, amp_omega) for r in reps]
+    per_rep = {q.name: [q.gather(m) for m in ms] for q in PER_REPLICA}
+    pools = {k: [f(m) for m in ms] for k, f in PERIOD_POOLS.items()}
     data = {
-        f"{k}_replica": _var(("replica",), np.asarray(v), *units[k]) for k, v in per_rep.items()
+        f"{q.name}_replica": _var(("replica",), np.asarray(per_rep[q.name]), q.units, q.long_name)
+        for q in PER_REPLICA
     }
-    n_periods = int(np.isfinite(tg_all).sum())
+    for q in PER_REPLICA:
+        if q.point is not None:
+            values = np.concatenate(pools[q.pool]) if q.pool else per_rep[q.name]
+            data[q.name] = _var((), _POINT_REDUCERS[q.point](values), q.units, q.long_name)
+    s_c, s_b = data["s_c"][1], data["s_b"][1]
+    frac = data["detachment_fraction"][1]
+    snap = ms[0]
     data.update(
         {
-            "s_c": _var((), s_c, *units["s_c"]),
-            "s_b": _var((), s_b, *units["s_b"]),
-            "s_b_printed": _var((), mean("s_b_printed"), *units["s_b_printed"]),
-            "detachment_fraction": _var((), frac, *units["detachment_fraction"]),
-            "max_gap": _var((), mean("max_gap"), *units["max_gap"]),
-            "T_g": _var((), float(np.nanmean(tg_all)), *units["T_g"]),
-            "T_g_sem": _var((), _sem(tg_all), *units["T_g_sem"]),
-            "p_s": _var(
-                (),
-                float(np.nanmean(ps_all)) if np.isfinite(ps_all).any() else math.nan,
-                *units["p_s"],
-            ),  # fmt: skip
-            "p_s_sem": _var((), _sem(ps_all), *units["p_s_sem"]),
-            "n_slips": _var((), n_slips, *units["n_slips"]),
-            "n_trials": _var((), n_trials, *units["n_trials"]),
-            "psi6_start": _var((), mean("psi6_start"), *units["psi6_start"]),
-            "psi6_end": _var((), mean("psi6_end"), *units["psi6_end"]),
-            "hexagonal_start": _var((), mean("hexagonal_start"), *units["hexagonal_start"]),
-            "hexagonal_end": _var((), mean("hexagonal_end"), *units["hexagonal_end"]),
-            "dislocations_start": _var(
-                (), mean("dislocations_start"), *units["dislocations_start"]
-            ),
-            "dislocations_end": _var((), mean("dislocations_end"), *units["dislocations_end"]),
-            "launch_ratio": _var((), mean("launch_ratio"), *units["launch_ratio"]),
             "convection": _var(
                 (), int(s_c > float(detection["convection_s_c"])), "1", "convection flag s_c > σ"
             ),
@@ -710,38 +737,37 @@ def point_dataset(
                 "every replica's bulk at measurement start is a defect-free crystal: mean "
                 "|psi6| >= crystal_min_psi6 and no disk with other than 6 Delaunay neighbours",
             ),  # fmt: skip
-            "s_k": _var(("phase",), np.mean(s_k_all, axis=0), "sigma", "s(k) of Eq. (B3)"),
-            "s_j": _var(
-                ("replica", "period"), np.asarray(s_j_all), "sigma", "s_j of Eq. (B1) per cycle"
+            "s_k": _var(
+                ("phase",), np.mean([m.s_k for m in ms], axis=0), "sigma", "s(k) of Eq. (B3)"
             ),
+            "s_j": _var(
+                ("replica", "period"),
+                np.asarray([m.s_j for m in ms]),
+                "sigma",
+                "s_j of Eq. (B1) per cycle",
+            ),  # fmt: skip
             "T_g_period": _var(
-                ("replica", "period"), np.asarray(tg_periods), "m*g*sigma", "T_g per period"
+                ("replica", "period"), np.asarray(pools["T_g"]), "m*g*sigma", "T_g per period"
             ),
             "p_s_period": _var(
-                ("replica", "slip_period"), np.asarray(ps_periods), "1", "slip fraction per period"
-            ),
-            "positions_start": _var(
-                ("particle", "xy"),
-                snap["positions_start"],
-                "sigma",
-                "disk centres at the start of the measurement (replica 0)",
+                ("replica", "slip_period"),
+                np.asarray(pools["p_s"]),
+                "1",
+                "slip fraction per period",
             ),  # fmt: skip
-            "order_start": _var(
-                ("particle",), snap["order_start"], "1", "local order at start (0 dis, 1 hex, 2 sq)"
-            ),
-            "psi6_abs_start": _var(("particle",), snap["psi6_abs_start"], "1", "|psi6| at start"),
-            "positions_end": _var(
-                ("particle", "xy"),
-                snap["positions_end"],
-                "sigma",
-                "disk centres at the end of the measurement (replica 0)",
-            ),  # fmt: skip
-            "order_end": _var(
-                ("particle",), snap["order_end"], "1", "local order at the end (0 dis, 1 hex, 2 sq)"
-            ),
-            "psi6_abs_end": _var(("particle",), snap["psi6_abs_end"], "1", "|psi6| at the end"),
         }
     )
+    for when, (i, at) in _WHEN.items():
+        lo = snap.local[when]
+        data[f"positions_{when}"] = _var(
+            ("particle", "xy"), snap.run.frames[i], "sigma",
+            f"disk centres at the {when} of the measurement (replica 0)",
+        )  # fmt: skip
+        data[f"order_{when}"] = _var(
+            ("particle",), lo["order"], "1", f"local order at {at} (0 dis, 1 hex, 2 sq)"
+        )
+        data[f"psi6_abs_{when}"] = _var(("particle",), np.abs(lo["psi6"]), "1", f"|psi6| at {at}")
+    n_periods = int(np.isfinite(np.concatenate(pools["T_g"])).sum())
     n_k = first.z_plate.shape[1]
     ds = xr.Dataset(
         data,
