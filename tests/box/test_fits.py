@@ -411,3 +411,31 @@ def test_slips_sampled_in_flight_are_fitted_beside_the_cycle_start():
     point = table["point"].iloc[0]
     assert {f"p_s_phase_0of2[{point}]", f"p_s_phase_1of2[{point}]"} <= names
     assert not any(q.startswith("p_s_periods_") for q in names)  # no window asked for
+
+
+def test_every_fit_row_stays_on_a_grid_too_small_to_fit():
+    """Two Γ per group are too few for the T_g* breakpoints: the break, slope and regional
+    barrier rows of every group are still there, empty, and the fits files' note says why
+    (the barrier over all points is fitted)."""
+    table = _table(4)
+    table = table[table["Gamma"].isin(GAMMA[:2])].reset_index(drop=True)
+    ths = fits.thresholds_table(table, DETECTION)
+    tfits = fits.temperature_fits(table, FITS, DETECTION)
+    sfits = fits.slip_fits(table, tfits, FITS)
+    df = summary_frame(fits.summary_rows(table, ths, tfits, sfits)).set_index("quantity")
+    ds = fits.fits_datasets(table, ths, tfits, sfits)
+    for init, k in (("random", 1), ("crystal", 2)):
+        regions = fits.REGION_NAMES[k]
+        for n_l in (20, 40):
+            group = f"[N_l={n_l},init={init},{W6}]"
+            names = [f"K_m_break_{i + 1}" for i in range(k)]
+            names += [f"T_g_slope_{r}" for r in regions]
+            names += [f"E_b_{r}{s}" for r in regions for s in ("", "_unweighted")]
+            for name in names:
+                assert math.isnan(df.loc[name + group, "value"]), name + group
+            assert {f"E_b_all{group}", f"E_b_all_unweighted{group}"} <= set(df.index)
+            for what in ("temperature", "slips"):
+                d = ds[what]
+                mine = (d["init"] == init) & (d["N_l"] == n_l) & ~d["name"].str.contains("_all")
+                notes = d["note"].values[mine.values]
+                assert notes.size and all("T_g* fit" in n for n in notes), (what, init, n_l)

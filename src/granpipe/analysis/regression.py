@@ -54,7 +54,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
@@ -583,6 +583,12 @@ class ArrheniusFit:
     zero_upper: np.ndarray = field(default_factory=lambda: np.zeros(0))
     zero_consistent: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     bound_cl: float = 0.95
+    note: str = ""
+
+    @classmethod
+    def refused(cls, level: float, note: str, method: str = "wls") -> ArrheniusFit:
+        """A fit that was not made: every number NaN, ``note`` saying why."""
+        return replace(_nan_fit(method, level, np.zeros(0), np.zeros(0), 0.95), note=note)
 
     def summary_row(
         self, study: str, quantity: str, paper_value: float | None = None, unit: str = "1"

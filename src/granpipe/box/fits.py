@@ -514,7 +514,8 @@ def temperature_fits(table: pd.DataFrame, fits_cfg: Mapping, detection: Mapping)
                 level=level,
             )
         except (ValueError, np.linalg.LinAlgError) as exc:
-            out[(init, n_l, walls)] = {"error": str(exc), "n_points": int(len(g))}
+            note = f"T_g* fit refused on {len(g)} points: {exc}"
+            out[(init, n_l, walls)] = _refused_temperature_fit(k, len(g), note)
             continue
         bp, bp_ci = fit.exp_breakpoints()
         out[(init, n_l, walls)] = {
@@ -531,6 +532,24 @@ def temperature_fits(table: pd.DataFrame, fits_cfg: Mapping, detection: Mapping)
             "regions": REGION_NAMES[k],
         }
     return out
+
+
+def _refused_temperature_fit(k: int, n_points: int, note: str) -> dict:
+    """A group's entry of :func:`temperature_fits` without a fit (no ``"fit"`` key): its
+    breakpoints and slopes NaN, ``error`` saying why."""
+    nan = math.nan
+    return {
+        "error": note,
+        "n_breakpoints": k,
+        "breakpoints_K_m": np.full(k, nan),
+        "breakpoints_K_m_ci": np.full((k, 2), nan),
+        "breakpoints_K_m_se": np.full(k, nan),
+        "slopes": np.full(k + 1, nan),
+        "slope_se": np.full(k + 1, nan),
+        "slope_ci": np.full((k + 1, 2), nan),
+        "n_points": int(n_points),
+        "regions": REGION_NAMES[k],
+    }
 
 
 SLIP_WEIGHTS = ("unweighted", "weighted")
@@ -574,16 +593,19 @@ def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
             suffix = "" if reading == main else f"_{reading}"
             try:
                 fits[f"all{suffix}"] = regression.arrhenius_fit(K, level=level, **args)
-            except ValueError:
-                pass
-            if "fit" in tf and tf["n_breakpoints"] > 0:
-                try:
-                    by = regression.arrhenius_by_region(
-                        K, tf["breakpoints_K_m"], tf["regions"], level=level, **args
-                    )
-                except ValueError:
-                    continue
-                fits.update({f"{r}{suffix}": f for r, f in by.items()})
+            except ValueError as exc:
+                fits[f"all{suffix}"] = regression.ArrheniusFit.refused(level, str(exc))
+            if tf.get("n_breakpoints", 0) == 0:
+                continue
+            try:
+                if "fit" not in tf:
+                    raise ValueError(f"no temperature fit to split the regions: {tf['error']}")
+                by = regression.arrhenius_by_region(
+                    K, tf["breakpoints_K_m"], tf["regions"], level=level, **args
+                )
+            except ValueError as exc:
+                by = {r: regression.ArrheniusFit.refused(level, str(exc)) for r in tf["regions"]}
+            fits.update({f"{r}{suffix}": f for r, f in by.items()})
         out[(init, n_l, walls)] = fits
     if "p_s_flight" in table.columns:  # the same fits with slips sampled in flight
         flight = table.assign(**{c: table[f"{c}_flight"] for c in _FLIGHT})
@@ -648,8 +670,6 @@ def summary_rows(
         q = _fmt_q(f"Gamma_{r.criterion}", r.init, r.N_l, _walls_of(r))
         rows.append(th.summary_row("box", q, _paper(paper, _walls_of(r)), "1", r.n_points))
     for (init, n_l, walls), tf in tfits.items():
-        if "fit" not in tf:
-            continue
         for i, name in enumerate(["K_m_break_1", "K_m_break_2"][: tf["n_breakpoints"]]):
             paper = PAPER["K_m_break_random"] if (init == "random" and i == 0) else None
             lo, hi = tf["breakpoints_K_m_ci"][i]
@@ -763,35 +783,38 @@ def fits_datasets(
     phase = xr.merge([pts, th])
     trows = []
     for (init, n_l, walls), tf in tfits.items():
-        if "fit" not in tf:
-            continue
+        note = tf.get("error", "")
         for i in range(tf["n_breakpoints"]):
             trows.append(
                 (init, n_l, *walls, "breakpoint", i, tf["breakpoints_K_m"][i],
-                 tf["breakpoints_K_m_se"][i], *tf["breakpoints_K_m_ci"][i])
+                 tf["breakpoints_K_m_se"][i], *tf["breakpoints_K_m_ci"][i], note)
             )  # fmt: skip
         for i in range(len(tf["slopes"])):
             trows.append(
                 (init, n_l, *walls, f"slope_{tf['regions'][i]}", i, tf["slopes"][i],
-                 tf["slope_se"][i], *tf["slope_ci"][i])
+                 tf["slope_se"][i], *tf["slope_ci"][i], note)
             )  # fmt: skip
-        trows.append(
-            (init, n_l, *walls, "intercept", 0, tf["fit"].intercept, math.nan, math.nan, math.nan)
-        )
+        intercept = tf["fit"].intercept if "fit" in tf else math.nan
+        trows.append((init, n_l, *walls, "intercept", 0, intercept, *[math.nan] * 3, note))
     temp = _rows_dataset(trows, "temperature fit of ln T_g* on ln K_m")
     srows = []
     for (init, n_l, walls), fits in sfits.items():
         for region, af in fits.items():
-            srows.append((init, n_l, *walls, f"E_b_{region}", 0, af.E_b, af.E_b_se, *af.E_b_ci))
             srows.append(
-                (init, n_l, *walls, f"log_A_{region}", 0, af.log_A, af.log_A_se, np.nan, np.nan)
+                (init, n_l, *walls, f"E_b_{region}", 0, af.E_b, af.E_b_se, *af.E_b_ci, af.note)
             )
+            srows.append(
+                (init, n_l, *walls, f"log_A_{region}", 0, af.log_A, af.log_A_se, np.nan, np.nan,
+                 af.note)
+            )  # fmt: skip
     slips = _rows_dataset(srows, "Arrhenius fit p_s = A exp(-E_b/K_m)")
     return {"phase_diagram": phase, "temperature": temp, "slips": slips}
 
 
 def _rows_dataset(rows, what: str) -> xr.Dataset:
-    cols = ["init", "N_l", *WALL_COLUMNS, "name", "index", "value", "se", "ci_low", "ci_high"]
+    cols = [
+        "init", "N_l", *WALL_COLUMNS, "name", "index", "value", "se", "ci_low", "ci_high", "note"
+    ]  # fmt: skip
     df = pd.DataFrame(rows, columns=cols)
 
     def lab(units, long_name):
@@ -811,5 +834,6 @@ def _rows_dataset(rows, what: str) -> xr.Dataset:
             **{c: ("row", df[c].to_numpy(str), lab("1", _TEXT_COLUMNS[c])) for c in _TEXT_COLUMNS},
             "name": ("row", df["name"].to_numpy(str), lab("1", "fitted quantity")),
             "index": ("row", df["index"].to_numpy(int), lab("1", "index within the quantity")),
+            "note": ("row", df["note"].to_numpy(str), lab("1", "why the value is empty")),
         },
     )

@@ -35,7 +35,7 @@ s_b and the detachment fraction are replica means (with the replica spread when 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -616,6 +616,87 @@ def _var(dims, data, units, long_name):
     return (dims, data, {"units": units, "long_name": long_name})
 
 
+def _nanmean(values) -> float:
+    v = np.asarray(values)
+    return float(np.nanmean(v)) if np.isfinite(v).any() else math.nan
+
+
+@dataclass(frozen=True)
+class _ReplicaMeasures:
+    """The estimators of one replica that the rows of :data:`PER_REPLICA` read."""
+
+    run: ReplicaRun
+    s_c: float
+    s_j: np.ndarray
+    s_b: float
+    s_k: np.ndarray
+    detachment: float
+    tg_periods: np.ndarray
+    slips: SlipResult
+    local: dict[str, dict]
+    checks: dict[str, CrystalCheck]  # "start", "end" and "ramp" (None without its frame)
+    amp_omega: float
+    phase_slips: list[SlipResult]  # (n_s,) p_s at each slip phase, the cycle start first
+    flight: np.ndarray  # (n_s,) fraction of periods with a gap under the bed at each
+    roll: np.ndarray  # (P,) c_j of :func:`roll_contrast`
+
+    def ramp_check(self, field: str) -> float:
+        """``field`` of the crystal check when the start-up ramp had ended (NaN, or 0 for
+        ``intact``, without that frame)."""
+        c = self.checks["ramp"]
+        if c is None:
+            return 0 if field == "intact" else math.nan
+        return float(getattr(c, field))
+
+    def launch(self, key: str) -> float:
+        """Largest upward speed ``transient_<key>`` over A ω (NaN without a transient)."""
+        tr = self.run.transient
+        if tr and self.amp_omega > 0:
+            return float(np.max(tr[key]) / self.amp_omega)
+        return math.nan
+
+
+def _replica_measures(run: ReplicaRun, detection, slips, order, lx, amp_omega):
+    s_c, s_j = convection_measure(run.z_tracers[:, 0, :])
+    s_b, s_k = bouncing_measure(run.z_tracers, run.z_plate)
+    frac, _ = detachment_fraction(run.bed_gap, tol=float(detection["detachment_gap"]))
+    slip_kw = {
+        "threshold": float(slips["displacement"]),
+        "min_count": int(slips["min_neighbours"]),
+        "r_max": float(slips["neighbour_cutoff"]),
+        "bulk_depth": float(slips["surface_depth"]),
+    }
+    phase_slips = [slip_probability(run.frames, **slip_kw)] + [
+        slip_probability(run.phase_frames[:, m], **slip_kw) for m in range(run.n_s - 1)
+    ]
+    flight = np.mean(run.bed_gap[:, slip_phases(run)] > float(detection["detachment_gap"]), 0)
+    r_max, threshold = float(order["neighbour_cutoff"]), float(order["threshold"])
+    frames = {w: run.frames[i] for w, (i, _) in _WHEN.items()}
+    local = {w: local_order(f, r_max=r_max, threshold=threshold) for w, f in frames.items()}
+    checks = {
+        w: crystal_check(
+            f, lx, r_max=r_max, threshold=threshold,
+            min_psi6=float(order["crystal_min_psi6"]), local=local[w],
+        )
+        for w, f in frames.items()
+    }  # fmt: skip
+    checks["ramp"] = (  # the crystal check of start-up damage
+        None if run.ramp_positions is None
+        else crystal_check(run.ramp_positions, lx, r_max=r_max, threshold=threshold,
+                           min_psi6=float(order["crystal_min_psi6"]))
+    )  # fmt: skip
+    return _ReplicaMeasures(
+        run, s_c, s_j, s_b, s_k, frac, run.T_g.mean(axis=1), phase_slips[0], local, checks,
+        amp_omega, phase_slips, flight, roll_contrast(run.frames, lx),
+    )  # fmt: skip
+
+
+def slip_phases(run: ReplicaRun) -> list[int]:
+    """(n_s,) the sampling phase k of each slip phase, k = m N_k/n_s."""
+    n_k = run.z_plate.shape[1]
+    return [m * n_k // run.n_s for m in range(run.n_s)]
+
+
 def _phase_slip_vars(phase_slips: Sequence[Sequence[SlipResult]], flight) -> dict:
     """p_s at each slip phase (``slip_phase``), all replicas pooled as the point's p_s is,
     and how often the bed is off the plate at that phase.
@@ -625,17 +706,17 @@ def _phase_slip_vars(phase_slips: Sequence[Sequence[SlipResult]], flight) -> dic
     phase_slips : per replica, the (n_s,) :class:`SlipResult` of each slip phase
     flight : per replica, (n_s,) fraction of periods with a gap under the bed at the phase
     """
-    per = [
-        np.concatenate([rep[m].per_period for rep in phase_slips]) for m in range(len(flight[0]))
-    ]
-    p_s = [float(np.nanmean(v)) if np.isfinite(v).any() else math.nan for v in per]
+    n_s = len(flight[0])
+    per = [np.concatenate([rep[m].per_period for rep in phase_slips]) for m in range(n_s)]
     count = {
-        key: np.asarray([sum(getattr(rep[m], key) for rep in phase_slips) for m in range(len(per))])
+        key: np.asarray([sum(getattr(rep[m], key) for rep in phase_slips) for m in range(n_s)])
         for key in ("n_slips", "n_trials")
     }
     dims = ("slip_phase",)
     return {
-        "p_s_phase": _var(dims, np.asarray(p_s), "1", "slip probability per period at the phase"),
+        "p_s_phase": _var(
+            dims, np.asarray([_nanmean(v) for v in per]), "1", "slip probability at the phase"
+        ),
         "p_s_sem_phase": _var(
             dims, np.asarray([_sem(v) for v in per]), "1", "standard error of p_s_phase"
         ),
@@ -650,6 +731,106 @@ def _phase_slip_vars(phase_slips: Sequence[Sequence[SlipResult]], flight) -> dic
     }
 
 
+@dataclass(frozen=True)
+class Measure:
+    """One per-replica quantity of a point: ``<name>_replica`` (replica,) in the dataset.
+
+    ``gather`` reads it from a replica's estimators. ``point`` makes the point's scalar
+    ``<name>``: ``"mean"`` over replicas (NaN-skipping), ``"sum"`` over replicas,
+    ``"pooled_mean"``/``"pooled_sem"`` over every replica's periods of ``pool``
+    (a key of :data:`PERIOD_POOLS`); None keeps the replica values only.
+    """
+
+    name: str
+    units: str
+    long_name: str
+    gather: Callable[[_ReplicaMeasures], float | int]
+    point: str | None = "mean"
+    pool: str | None = None
+
+
+#: Per-period records pooled over replicas, by name.
+PERIOD_POOLS: dict[str, Callable[[_ReplicaMeasures], np.ndarray]] = {
+    "T_g": lambda m: m.tg_periods,
+    "p_s": lambda m: m.slips.per_period,
+}
+
+
+#: Where each snapshot of the measurement is taken: frame index and phrase.
+_WHEN = {"start": (0, "start"), "end": (-1, "the end")}
+
+
+def _crystal_rows() -> tuple[Measure, ...]:
+    """The rows of :func:`crystal_check` at the start and the end, field by field."""
+    fields = (
+        ("psi6", "bulk mean |psi6| at the {when} of the measurement", float, "mean"),
+        ("hexagonal", "fraction of bulk disks with hexagonal local order at {at}", float, "mean"),
+        ("dislocations", "bulk disks with other than 6 Delaunay neighbours at {at}", int, "mean"),
+        ("intact", "bulk |psi6| >= crystal_min_psi6 and no dislocation at {at}", int, None),
+    )
+
+    def gather(field, when, kind):
+        return lambda m: kind(getattr(m.checks[when], field))
+
+    return tuple(
+        Measure(f"{field}_{when}", "1", text.format(when=when, at=at),
+                gather(field, when, kind), point)
+        for field, text, kind, point in fields
+        for when, (_, at) in _WHEN.items()
+    )  # fmt: skip
+
+
+#: The per-replica quantities of a point, in dataset order.
+PER_REPLICA: tuple[Measure, ...] = (
+    Measure("s_c", "sigma", "convection measure s_c (Eqs. B1-B2)", lambda m: m.s_c),
+    Measure("s_b", "sigma", "bouncing measure s_b (spread of s(k) over phases, docs/box.md)",
+            lambda m: m.s_b),
+    Measure("s_b_printed", "sigma", "Eq. (B4) as printed: sqrt(mean_k s(k)^2)",
+            lambda m: float(np.sqrt(np.mean(m.s_k**2)))),
+    Measure("detachment_fraction", "1", "fraction of the cycle with a gap under the bed",
+            lambda m: m.detachment),
+    Measure("max_gap", "sigma", "mean over cycles of the largest gap under the bed",
+            lambda m: float(m.run.bed_gap.max(axis=1).mean())),
+    Measure("T_g", "m*g*sigma", "granular temperature, time average (Eq. 2)",
+            lambda m: float(m.tg_periods.mean()), "pooled_mean", "T_g"),
+    Measure("T_g_sem", "m*g*sigma", "standard error of T_g over periods",
+            lambda m: _sem(m.tg_periods), "pooled_sem", "T_g"),
+    Measure("p_s", "1", "slip probability per period", lambda m: m.slips.p_s,
+            "pooled_mean", "p_s"),
+    Measure("p_s_sem", "1", "standard error of p_s over periods", lambda m: m.slips.sem,
+            "pooled_sem", "p_s"),
+    Measure("n_slips", "1", "slips counted", lambda m: m.slips.n_slips, "sum"),
+    Measure("n_trials", "1", "bulk disk-periods examined", lambda m: m.slips.n_trials, "sum"),
+    *_crystal_rows(),
+    Measure("launch_ratio", "1",
+            "largest bed centre-of-mass upward speed in transient / (A omega)",
+            lambda m: m.launch("vz_cm")),
+    Measure("launch_ratio_disk", "1", "largest disk upward speed in the transient / (A omega)",
+            lambda m: m.launch("max_vz"), None),
+    Measure("plate_contact_fraction", "1", "fraction of samples with a disk on the plate",
+            lambda m: float(np.mean(m.run.plate_contacts > 0)), None),
+    Measure("roll_velocity", "sigma", "mean wall-to-centre contrast of dz per period",
+            lambda m: _nanmean(m.roll)),
+    Measure("roll_significance", "1", "roll score: normal score of the mean contrast against 0",
+            lambda m: roll_significance(m.roll)),
+    Measure("psi6_ramp", "1", "bulk mean |psi6| when the start-up ramp has ended",
+            lambda m: m.ramp_check("psi6")),
+    Measure("dislocations_ramp", "1", "bulk disks with other than 6 Delaunay neighbours, ramp end",
+            lambda m: m.ramp_check("dislocations")),
+    Measure("intact_ramp", "1", "bulk |psi6| >= crystal_min_psi6 and no dislocation at ramp end",
+            lambda m: int(m.ramp_check("intact")), None),
+    Measure("wall_seconds", "s", "wall time of the runs", lambda m: m.run.wall_seconds, None),
+    Measure("steps", "1", "time steps run (transient included)", lambda m: m.run.steps, None),
+)  # fmt: skip
+
+_POINT_REDUCERS: dict[str, Callable[[np.ndarray], float | int]] = {
+    "mean": _nanmean,
+    "sum": lambda v: int(np.sum(v)),
+    "pooled_mean": _nanmean,
+    "pooled_sem": _sem,
+}
+
+
 def point_dataset(
     runs: Mapping[int, ReplicaRun],
     detection: Mapping,
@@ -658,6 +839,10 @@ def point_dataset(
     lx: float,
 ) -> xr.Dataset:
     """Measures of one point from its replicas (``runs[r]``), as a labelled Dataset.
+
+    The per-replica quantities and their point values are the rows of
+    :data:`PER_REPLICA`; the flags, s(k), the per-period records and the snapshots of
+    replica 0 follow.
 
     Parameters
     ----------
@@ -670,183 +855,22 @@ def point_dataset(
     R = len(reps)
     first = runs[reps[0]]
     amp_omega = float(first.attrs["amplitude"]) * float(first.attrs["omega"])
-    per_rep: dict[str, list] = {
-        k: []
-        for k in (
-            "s_c", "s_b", "s_b_printed", "detachment_fraction", "max_gap", "T_g", "T_g_sem",
-            "p_s", "p_s_sem", "n_slips", "n_trials", "psi6_start", "psi6_end",
-            "hexagonal_start", "hexagonal_end", "dislocations_start", "dislocations_end",
-            "intact_start", "intact_end", "launch_ratio", "launch_ratio_disk",
-            "plate_contact_fraction", "roll_velocity", "roll_significance", "psi6_ramp",
-            "dislocations_ramp", "intact_ramp", "wall_seconds", "steps",
-        )
-    }  # fmt: skip
-    s_k_all, s_j_all, tg_periods, ps_periods, roll_periods = [], [], [], [], []
-    r_max = float(order["neighbour_cutoff"])
-    slip_kw = {
-        "threshold": float(slips["displacement"]),
-        "min_count": int(slips["min_neighbours"]),
-        "r_max": float(slips["neighbour_cutoff"]),
-        "bulk_depth": float(slips["surface_depth"]),
-    }
-    n_k = first.z_plate.shape[1]
-    n_s = first.n_s
-    slip_k = [m * n_k // n_s for m in range(n_s)]  # the sampling phase of each slip phase
-    phase_slips: list[list[SlipResult]] = []
-    flight = []
-    for r in reps:
-        run = runs[r]
-        s_c, s_j = convection_measure(run.z_tracers[:, 0, :])
-        s_b, s_k = bouncing_measure(run.z_tracers, run.z_plate)
-        frac, _ = detachment_fraction(run.bed_gap, tol=float(detection["detachment_gap"]))
-        tg_p = run.T_g.mean(axis=1)
-        sl = slip_probability(run.frames, **slip_kw)
-        phase_slips.append(
-            [sl] + [slip_probability(run.phase_frames[:, m], **slip_kw) for m in range(n_s - 1)]
-        )
-        flight.append(np.mean(run.bed_gap[:, slip_k] > float(detection["detachment_gap"]), 0))
-        lo0 = local_order(run.frames[0], r_max=r_max, threshold=float(order["threshold"]))
-        lo1 = local_order(run.frames[-1], r_max=r_max, threshold=float(order["threshold"]))
-        checks = {
-            when: crystal_check(
-                frame, lx, r_max=r_max, threshold=float(order["threshold"]),
-                min_psi6=float(order["crystal_min_psi6"]), local=lo,
-            )
-            for when, frame, lo in (("start", run.frames[0], lo0), ("end", run.frames[-1], lo1))
-        }  # fmt: skip
-        roll = roll_contrast(run.frames, lx)
-        if run.ramp_positions is not None:  # the crystal check of start-up damage
-            ramp = crystal_check(run.ramp_positions, lx, r_max=r_max,
-                                 threshold=float(order["threshold"]),
-                                 min_psi6=float(order["crystal_min_psi6"]))  # fmt: skip
-            ramp_check = (ramp.psi6, ramp.dislocations, int(ramp.intact))
-        else:
-            ramp_check = (math.nan, math.nan, 0)
-        ramp_keys = ("psi6_ramp", "dislocations_ramp", "intact_ramp")
-        for key, value in zip(ramp_keys, ramp_check, strict=True):
-            per_rep[key].append(value)
-        tr = run.transient
-        per_rep["s_c"].append(s_c)
-        per_rep["s_b"].append(s_b)
-        per_rep["s_b_printed"].append(float(np.sqrt(np.mean(s_k**2))))
-        per_rep["detachment_fraction"].append(frac)
-        per_rep["max_gap"].append(float(run.bed_gap.max(axis=1).mean()))
-        per_rep["T_g"].append(float(tg_p.mean()))
-        per_rep["T_g_sem"].append(_sem(tg_p))
-        per_rep["p_s"].append(sl.p_s)
-        per_rep["p_s_sem"].append(sl.sem)
-        per_rep["n_slips"].append(sl.n_slips)
-        per_rep["n_trials"].append(sl.n_trials)
-        for when, c in checks.items():
-            per_rep[f"psi6_{when}"].append(c.psi6)
-            per_rep[f"hexagonal_{when}"].append(c.hexagonal)
-            per_rep[f"dislocations_{when}"].append(c.dislocations)
-            per_rep[f"intact_{when}"].append(int(c.intact))
-        if tr and amp_omega > 0:
-            per_rep["launch_ratio"].append(float(np.max(tr["vz_cm"]) / amp_omega))
-            per_rep["launch_ratio_disk"].append(float(np.max(tr["max_vz"]) / amp_omega))
-        else:
-            per_rep["launch_ratio"].append(math.nan)
-            per_rep["launch_ratio_disk"].append(math.nan)
-        per_rep["plate_contact_fraction"].append(float(np.mean(run.plate_contacts > 0)))
-        per_rep["roll_velocity"].append(
-            float(np.nanmean(roll)) if np.isfinite(roll).any() else math.nan
-        )
-        per_rep["roll_significance"].append(roll_significance(roll))
-        per_rep["wall_seconds"].append(run.wall_seconds)
-        per_rep["steps"].append(run.steps)
-        s_k_all.append(s_k)
-        s_j_all.append(s_j)
-        tg_periods.append(tg_p)
-        ps_periods.append(sl.per_period)
-        roll_periods.append(roll)
-        if r == reps[0]:
-            snap = {
-                "positions_start": run.frames[0],
-                "order_start": lo0["order"],
-                "psi6_abs_start": np.abs(lo0["psi6"]),
-                "positions_end": run.frames[-1],
-                "order_end": lo1["order"],
-                "psi6_abs_end": np.abs(lo1["psi6"]),
-            }
-    tg_all = np.concatenate(tg_periods)
-    ps_all = np.concatenate(ps_periods)
-    n_slips = int(np.sum(per_rep["n_slips"]))
-    n_trials = int(np.sum(per_rep["n_trials"]))
-
-    def mean(key):
-        return float(np.nanmean(per_rep[key])) if np.isfinite(per_rep[key]).any() else math.nan
-
-    s_c, s_b, frac = mean("s_c"), mean("s_b"), mean("detachment_fraction")
-    units = {
-        "s_c": ("sigma", "convection measure s_c (Eqs. B1-B2)"),
-        "s_b": ("sigma", "bouncing measure s_b (spread of s(k) over phases, docs/box.md)"),
-        "s_b_printed": ("sigma", "Eq. (B4) as printed: sqrt(mean_k s(k)^2)"),
-        "detachment_fraction": ("1", "fraction of the cycle with a gap under the bed"),
-        "max_gap": ("sigma", "mean over cycles of the largest gap under the bed"),
-        "T_g": ("m*g*sigma", "granular temperature, time average (Eq. 2)"),
-        "T_g_sem": ("m*g*sigma", "standard error of T_g over periods"),
-        "p_s": ("1", "slip probability per period"),
-        "p_s_sem": ("1", "standard error of p_s over periods"),
-        "n_slips": ("1", "slips counted"),
-        "n_trials": ("1", "bulk disk-periods examined"),
-        "psi6_start": ("1", "bulk mean |psi6| at the start of the measurement"),
-        "psi6_end": ("1", "bulk mean |psi6| at the end of the measurement"),
-        "hexagonal_start": ("1", "fraction of bulk disks with hexagonal local order at start"),
-        "hexagonal_end": ("1", "fraction of bulk disks with hexagonal local order at the end"),
-        "dislocations_start": ("1", "bulk disks with other than 6 Delaunay neighbours at start"),
-        "dislocations_end": ("1", "bulk disks with other than 6 Delaunay neighbours at the end"),
-        "intact_start": ("1", "bulk |psi6| >= crystal_min_psi6 and no dislocation at start"),
-        "intact_end": ("1", "bulk |psi6| >= crystal_min_psi6 and no dislocation at the end"),
-        "launch_ratio": ("1", "largest bed centre-of-mass upward speed in transient / (A omega)"),
-        "launch_ratio_disk": ("1", "largest disk upward speed in the transient / (A omega)"),
-        "plate_contact_fraction": ("1", "fraction of samples with a disk on the plate"),
-        "roll_velocity": ("sigma", "mean wall-to-centre contrast of dz per period"),
-        "roll_significance": ("1", "roll score: normal score of the mean contrast against zero"),
-        "psi6_ramp": ("1", "bulk mean |psi6| when the start-up ramp has ended"),
-        "dislocations_ramp": ("1", "bulk disks with other than 6 Delaunay neighbours, ramp end"),
-        "intact_ramp": ("1", "bulk |psi6| >= crystal_min_psi6 and no dislocation at ramp end"),
-        "wall_seconds": ("s", "wall time of the runs"),
-        "steps": ("1", "time steps run (transient included)"),
-    }  # fmt: skip
+    ms = [_replica_measures(runs[r], detection, slips, order, lx, amp_omega) for r in reps]
+    per_rep = {q.name: [q.gather(m) for m in ms] for q in PER_REPLICA}
+    pools = {k: [f(m) for m in ms] for k, f in PERIOD_POOLS.items()}
     data = {
-        f"{k}_replica": _var(("replica",), np.asarray(v), *units[k]) for k, v in per_rep.items()
+        f"{q.name}_replica": _var(("replica",), np.asarray(per_rep[q.name]), q.units, q.long_name)
+        for q in PER_REPLICA
     }
-    n_periods = int(np.isfinite(tg_all).sum())
+    for q in PER_REPLICA:
+        if q.point is not None:
+            values = np.concatenate(pools[q.pool]) if q.pool else per_rep[q.name]
+            data[q.name] = _var((), _POINT_REDUCERS[q.point](values), q.units, q.long_name)
+    s_c, s_b = data["s_c"][1], data["s_b"][1]
+    frac = data["detachment_fraction"][1]
+    snap = ms[0]
     data.update(
         {
-            "s_c": _var((), s_c, *units["s_c"]),
-            "s_b": _var((), s_b, *units["s_b"]),
-            "s_b_printed": _var((), mean("s_b_printed"), *units["s_b_printed"]),
-            "detachment_fraction": _var((), frac, *units["detachment_fraction"]),
-            "max_gap": _var((), mean("max_gap"), *units["max_gap"]),
-            "T_g": _var((), float(np.nanmean(tg_all)), *units["T_g"]),
-            "T_g_sem": _var((), _sem(tg_all), *units["T_g_sem"]),
-            "p_s": _var(
-                (),
-                float(np.nanmean(ps_all)) if np.isfinite(ps_all).any() else math.nan,
-                *units["p_s"],
-            ),  # fmt: skip
-            "p_s_sem": _var((), _sem(ps_all), *units["p_s_sem"]),
-            "n_slips": _var((), n_slips, *units["n_slips"]),
-            "n_trials": _var((), n_trials, *units["n_trials"]),
-            "psi6_start": _var((), mean("psi6_start"), *units["psi6_start"]),
-            "psi6_end": _var((), mean("psi6_end"), *units["psi6_end"]),
-            "hexagonal_start": _var((), mean("hexagonal_start"), *units["hexagonal_start"]),
-            "hexagonal_end": _var((), mean("hexagonal_end"), *units["hexagonal_end"]),
-            "dislocations_start": _var(
-                (), mean("dislocations_start"), *units["dislocations_start"]
-            ),
-            "dislocations_end": _var((), mean("dislocations_end"), *units["dislocations_end"]),
-            "launch_ratio": _var((), mean("launch_ratio"), *units["launch_ratio"]),
-            "roll_velocity": _var((), mean("roll_velocity"), *units["roll_velocity"]),
-            "roll_significance": _var((), mean("roll_significance"), *units["roll_significance"]),
-            "rolls": _var(
-                (),
-                int(mean("roll_significance") > float(detection["roll_significance"])),
-                "1",
-                "roll flag: the roll score exceeds detection.roll_significance",
-            ),  # fmt: skip
             "convection": _var(
                 (), int(s_c > float(detection["convection_s_c"])), "1", "convection flag s_c > σ"
             ),
@@ -866,60 +890,67 @@ def point_dataset(
                 "every replica's bulk at measurement start is a defect-free crystal: mean "
                 "|psi6| >= crystal_min_psi6 and no disk with other than 6 Delaunay neighbours",
             ),  # fmt: skip
-            "psi6_ramp": _var((), mean("psi6_ramp"), *units["psi6_ramp"]),
-            "dislocations_ramp": _var((), mean("dislocations_ramp"), *units["dislocations_ramp"]),
+            "rolls": _var(
+                (),
+                int(data["roll_significance"][1] > float(detection["roll_significance"])),
+                "1",
+                "roll flag: the roll score exceeds detection.roll_significance",
+            ),  # fmt: skip
             "crystal_intact_ramp": _var(
                 (),
                 int(all(per_rep["intact_ramp"])),
                 "1",
                 "every replica's bulk is a defect-free crystal when the start-up ramp has ended",
             ),  # fmt: skip
-            **_phase_slip_vars(phase_slips, flight),
-            "s_k": _var(("phase",), np.mean(s_k_all, axis=0), "sigma", "s(k) of Eq. (B3)"),
-            "s_j": _var(
-                ("replica", "period"), np.asarray(s_j_all), "sigma", "s_j of Eq. (B1) per cycle"
-            ),
-            "T_g_period": _var(
-                ("replica", "period"), np.asarray(tg_periods), "m*g*sigma", "T_g per period"
-            ),
-            "p_s_period": _var(
-                ("replica", "slip_period"), np.asarray(ps_periods), "1", "slip fraction per period"
-            ),
+            **_phase_slip_vars([m.phase_slips for m in ms], [m.flight for m in ms]),
             "roll_contrast": _var(
                 ("replica", "slip_period"),
-                np.asarray(roll_periods),
+                np.asarray([m.roll for m in ms]),
                 "sigma",
                 "c_j: wall-to-centre contrast of the bed's vertical displacement over period j",
             ),  # fmt: skip
-            "positions_start": _var(
-                ("particle", "xy"),
-                snap["positions_start"],
-                "sigma",
-                "disk centres at the start of the measurement (replica 0)",
-            ),  # fmt: skip
-            "order_start": _var(
-                ("particle",), snap["order_start"], "1", "local order at start (0 dis, 1 hex, 2 sq)"
+            "s_k": _var(
+                ("phase",), np.mean([m.s_k for m in ms], axis=0), "sigma", "s(k) of Eq. (B3)"
             ),
-            "psi6_abs_start": _var(("particle",), snap["psi6_abs_start"], "1", "|psi6| at start"),
-            "positions_end": _var(
-                ("particle", "xy"),
-                snap["positions_end"],
+            "s_j": _var(
+                ("replica", "period"),
+                np.asarray([m.s_j for m in ms]),
                 "sigma",
-                "disk centres at the end of the measurement (replica 0)",
+                "s_j of Eq. (B1) per cycle",
             ),  # fmt: skip
-            "order_end": _var(
-                ("particle",), snap["order_end"], "1", "local order at the end (0 dis, 1 hex, 2 sq)"
+            "T_g_period": _var(
+                ("replica", "period"), np.asarray(pools["T_g"]), "m*g*sigma", "T_g per period"
             ),
-            "psi6_abs_end": _var(("particle",), snap["psi6_abs_end"], "1", "|psi6| at the end"),
+            "p_s_period": _var(
+                ("replica", "slip_period"),
+                np.asarray(pools["p_s"]),
+                "1",
+                "slip fraction per period",
+            ),  # fmt: skip
         }
     )
+    for when, (i, at) in _WHEN.items():
+        lo = snap.local[when]
+        data[f"positions_{when}"] = _var(
+            ("particle", "xy"), snap.run.frames[i], "sigma",
+            f"disk centres at the {when} of the measurement (replica 0)",
+        )  # fmt: skip
+        data[f"order_{when}"] = _var(
+            ("particle",), lo["order"], "1", f"local order at {at} (0 dis, 1 hex, 2 sq)"
+        )
+        data[f"psi6_abs_{when}"] = _var(("particle",), np.abs(lo["psi6"]), "1", f"|psi6| at {at}")
+    n_periods = int(np.isfinite(np.concatenate(pools["T_g"])).sum())
+    n_k = first.z_plate.shape[1]
     ds = xr.Dataset(
         data,
         coords={
             "replica": _var(("replica",), np.asarray(reps), "1", "replica index"),
             "phase": _var(("phase",), np.arange(n_k) / n_k, "1", "phase k/N_k of the cycle"),
             "slip_phase": _var(
-                ("slip_phase",), np.asarray(slip_k) / n_k, "1", "phase of the slip frames"
+                ("slip_phase",),
+                np.asarray(slip_phases(first)) / n_k,
+                "1",
+                "phase of the slip frames",
             ),
         },
     )

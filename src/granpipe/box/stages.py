@@ -561,7 +561,7 @@ def load_fits(fits_dir: str | Path):
         ds = read_dataset(fits_dir / f"{name}.nc")
         cols = ("value", "se", "ci_low", "ci_high", "N_l", "mu_w")
         df = pd.DataFrame({c: ds[c].values for c in cols})
-        for c in ("init", "name", "side_walls", "wall_torque"):
+        for c in ("init", "name", "side_walls", "wall_torque", "note"):
             df[c] = ds[c].values.astype(str)
         df["index"] = ds["index"].values.astype(int)
         df["N_l"] = df["N_l"].astype(int)

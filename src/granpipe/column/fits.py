@@ -19,7 +19,12 @@ from ..analysis.summary import summary_row
 from . import continuum as cont
 from .measures import t_interval
 from .model import ColumnParams
-from .protocol import CONTINUUM_MODELS, MODEL_NAMES, SMOOTH_CHAIN, TOP_TREATMENTS
+from .protocol import (
+    CONTINUUM_MODELS,
+    MODEL_NAMES,
+    SIGMA_SCAN_MODELS,
+    TOP_TREATMENTS,
+)
 
 __all__ = [
     "relaxation_fit",
@@ -30,12 +35,15 @@ __all__ = [
 ]
 
 
-def summary_rows(fit: Mapping, cmap: xr.Dataset, comp: xr.Dataset, conv: xr.Dataset, units):
+def summary_rows(
+    fit: Mapping, cmap: xr.Dataset, comp: xr.Dataset, conv: xr.Dataset, units, sigma_widths=()
+):
     """Every summary row of the column and the chaos thresholds per period.
 
     ``fit``: :func:`relaxation_fit`; ``cmap``: the chaos map;
     ``comp``/``conv``: the continuum comparison and convergence runs; ``units``: the
-    config's unit names. Returns (rows, thresholds (n_T,) [length]).
+    config's unit names; ``sigma_widths``: the config's scan widths (rows of
+    :func:`sigma_scan_rows`). Returns (rows, thresholds (n_T,) [length]).
     """
     rows = []
 
@@ -106,7 +114,7 @@ def summary_rows(fit: Mapping, cmap: xr.Dataset, comp: xr.Dataset, conv: xr.Data
         "1",
         n=int(cmap["chaotic"].size),
     )
-    rows.extend(continuum_rows(comp, conv, units["fig2_length"]))
+    rows.extend(continuum_rows(comp, conv, units["fig2_length"], sigma_widths))
     return rows, thresholds
 
 
@@ -217,7 +225,7 @@ def _return_periods_reading(cmap, units):
     return lines, verdict
 
 
-def theorem1_note(cmap, comp, conv, units, relax=None):
+def theorem1_note(cmap, comp, conv, units, relax=None, sigma_widths=()):
     """Plain-text reading of the chaos map against Theorem 1, and the continuum distances."""
     A, T = cmap["a"].values, cmap["T"].values
     ch = cmap["chaotic"].values
@@ -345,7 +353,7 @@ def theorem1_note(cmap, comp, conv, units, relax=None):
             )
         lines.append(txt)
     lines.append("")
-    lines.extend(continuum_note(comp, conv, units))
+    lines.extend(continuum_note(comp, conv, units, sigma_widths))
     return "\n".join(lines) + "\n"
 
 
@@ -361,7 +369,9 @@ def finest_orders(conv: xr.Dataset, model: str, top: str) -> list[float]:
     return [float(x) for x in str(conv.attrs[f"orders_{model}_{top}"]).split()]
 
 
-def continuum_rows(comp: xr.Dataset, conv: xr.Dataset, length_unit: str) -> list[dict]:
+def continuum_rows(
+    comp: xr.Dataset, conv: xr.Dataset, length_unit: str, sigma_widths=()
+) -> list[dict]:
     """Summary rows of the continuum comparison (docs/results.md, "Column").
 
     Per model and top treatment, at the finest refinement: RMS distances to the discrete
@@ -391,7 +401,7 @@ def continuum_rows(comp: xr.Dataset, conv: xr.Dataset, length_unit: str) -> list
                 )
             )
         rows.append(summary_row("column", f"continuum_finest_refinement[model={model}]", k, "h/dz"))
-    rows += sigma_scan_rows(conv)
+    rows += sigma_scan_rows(conv, sigma_widths)
     for top in TOP_TREATMENTS:
         rows.append(
             summary_row(
@@ -409,29 +419,38 @@ def continuum_rows(comp: xr.Dataset, conv: xr.Dataset, length_unit: str) -> list
     return rows
 
 
-def _sigma_scan(conv: xr.Dataset):
-    """(model, top, w_σ, relative distance) of the convergence run's scan over w_σ."""
-    if "sigma_scan_relative_displacements" not in conv:
-        return []
-    da = conv["sigma_scan_relative_displacements"]
+def _sigma_scan(conv: xr.Dataset, sigma_widths=()):
+    """(model, top, w_σ, relative distance) of the scan over w_σ: every scanned model and
+    top at the widths of the convergence run and of ``sigma_widths``; NaN where the run
+    has no value."""
+    da = conv.get("sigma_scan_relative_displacements")
+    have = {}
+    if da is not None:
+        have = {
+            (str(m), str(t), float(w)): float(da.sel(scan_model=m, top=t, sigma_width=w))
+            for m in da["scan_model"].values
+            for t in da["top"].values
+            for w in da["sigma_width"].values
+        }
+    widths = list(dict.fromkeys([w for _, _, w in have] + [float(w) for w in sigma_widths]))
     return [
-        (str(m), str(t), float(w), float(da.sel(scan_model=m, top=t, sigma_width=w)))
-        for m in da["scan_model"].values
-        for t in da["top"].values
-        for w in da["sigma_width"].values
+        (m, t, w, have.get((m, t, w), math.nan))
+        for m in SIGMA_SCAN_MODELS
+        for t in TOP_TREATMENTS
+        for w in widths
     ]
 
 
-def sigma_scan_rows(conv: xr.Dataset) -> list[dict]:
-    """Summary rows of the scan over the width w_σ of the smooth sign (docs/results.md)."""
+def _sigma_scan_name(m: str, t: str, w: float) -> str:
+    return f"continuum_relative_displacements[model={m},top={t},sigma_width={w:g}]"
+
+
+def sigma_scan_rows(conv: xr.Dataset, sigma_widths=()) -> list[dict]:
+    """Summary rows of the scan over the width w_σ of the smooth sign (docs/results.md),
+    one per model, top and width of :func:`_sigma_scan`."""
     return [
-        summary_row(
-            "column",
-            f"continuum_relative_displacements[model={m},top={t},sigma_width={w:g}]",
-            v,
-            "1",
-        )
-        for m, t, w, v in _sigma_scan(conv)
+        summary_row("column", _sigma_scan_name(m, t, w), v, "1")
+        for m, t, w, v in _sigma_scan(conv, sigma_widths)
     ]
 
 
@@ -453,7 +472,32 @@ def printed_longwave_speeds(h: float, length_unit: str) -> dict:
     return out
 
 
-def continuum_note(comp: xr.Dataset, conv: xr.Dataset, units: Mapping) -> list[str]:
+def sigma_scan_note(conv: xr.Dataset, sigma_widths=()) -> list[str]:
+    """Lines of the column note on the scan over w_σ; the rows without a value named."""
+    scan = _sigma_scan(conv, sigma_widths)
+    if not scan:
+        return []
+    k = conv.attrs.get("sigma_scan_refinement", "?")
+    lines = [
+        f"- Against the width w_σ of the smooth sign (L-W and derived BSR at h/{k}; the "
+        "chain with the same smooth sign is what the smoothing alone costs):"
+    ]
+    for top in TOP_TREATMENTS:
+        for m in SIGMA_SCAN_MODELS:
+            vals = [f"{v:.3g} (w_σ = {w:g})" for mm, t, w, v in scan if mm == m and t == top]
+            lines.append(f"  - {top} top, {MODEL_NAMES[m]}: " + ", ".join(vals))
+    empty = [_sigma_scan_name(m, t, w) for m, t, w, v in scan if not math.isfinite(v)]
+    if empty:
+        lines.append(
+            "  - empty (the convergence run has no value there: width not run, or no "
+            "solution): " + ", ".join(empty)
+        )
+    return lines
+
+
+def continuum_note(
+    comp: xr.Dataset, conv: xr.Dataset, units: Mapping, sigma_widths=()
+) -> list[str]:
     """Lines of the column note on the continuum models against the discrete column."""
     lines = ["## Continuum models against the discrete column (Fig. 2 problem)", ""]
     sc_t = float(comp.attrs["time_scale"])
@@ -486,17 +530,7 @@ def continuum_note(comp: xr.Dataset, conv: xr.Dataset, units: Mapping) -> list[s
             f"- Imposed by the hybrid top ({MODEL_NAMES[model]}): the distance is "
             f"{rel_h:.3g} of the discrete motion with it and {rel_f:.3g} with a free top."
         )
-    scan = _sigma_scan(conv)
-    if scan:
-        k = int(conv.attrs["sigma_scan_refinement"])
-        lines.append(
-            f"- Against the width w_σ of the smooth sign (L-W and derived BSR at h/{k}; the "
-            "chain with the same smooth sign is what the smoothing alone costs):"
-        )
-        for top in TOP_TREATMENTS:
-            for m in ("longwave", "bsr_derived", SMOOTH_CHAIN):
-                vals = [f"{v:.3g} (w_σ = {w:g})" for mm, t, w, v in scan if mm == m and t == top]
-                lines.append(f"  - {top} top, {MODEL_NAMES[m]}: " + ", ".join(vals))
+    lines.extend(sigma_scan_note(conv, sigma_widths))
     for top in TOP_TREATMENTS:
         ct = float(comp.attrs[f"bsr_collapse_time_{top}"])
         lines.append(

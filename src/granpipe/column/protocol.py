@@ -373,6 +373,9 @@ sign σ(W) = tanh(W/w_σ) the continuum models need (the derived BSR with the po
 kernel on the particles' own labels), so that a distance can be split into what the
 smoothing of the sign costs and what the continuum limit costs."""
 
+#: Models of the scan over the width w_σ of the smooth sign, in the order of its axis.
+SIGMA_SCAN_MODELS = ("longwave", "bsr_derived", SMOOTH_CHAIN)
+
 MODEL_NAMES = {
     "longwave": "long-wave (derived)",
     "bsr": "BSR (Eq. 45 as printed)",
@@ -650,7 +653,7 @@ def continuum_convergence(
         {"units": "1", "long_name": "h / dz (-1: not run)"},
     )
     widths = [float(w) for w in sigma_widths]
-    scan_models = ("longwave", "bsr_derived", SMOOTH_CHAIN)
+    scan_models = SIGMA_SCAN_MODELS
     scan = np.full((len(scan_models), len(TOP_TREATMENTS), len(widths)), np.nan)
     rec = ends["longwave"] / 100
     for i, model in enumerate(scan_models):

@@ -259,7 +259,8 @@ def fits_stage(params, relax_path, chaos_path, cont_path, conv_path, out_csv, ou
     ens, cmap, comp, conv = _reduced_inputs(params, relax_path, chaos_path, cont_path, conv_path)
     units = params.get("units", {"length": "m", "time": "s", "fig2_length": "cm", "fig2_time": "s"})
     fit = relaxation_fit(ens, int(params.get("n_boot", 1000)))
-    rows, thresholds = summary_rows(fit, cmap, comp, conv, units)
+    widths = params.get("convergence", {}).get("sigma_widths", ())
+    rows, thresholds = summary_rows(fit, cmap, comp, conv, units, widths)
     # the column's own file: rewritten whole (merge=False), so a dropped grid point leaves
     write_summary(rows, out_csv, merge=False)
     _log(f"wrote {out_csv} ({len(rows)} rows)")
@@ -278,7 +279,7 @@ def fits_stage(params, relax_path, chaos_path, cont_path, conv_path, out_csv, ou
         attrs={f"relaxation_{k}": float(v[0]) for k, v in fit.items()},
     )
     _write(fds, out_nc, params, stage="fits")
-    note = theorem1_note(cmap, comp, conv, units, fit)
+    note = theorem1_note(cmap, comp, conv, units, fit, widths)
     write_text(note, out_note)
     print(note)
 

@@ -192,6 +192,12 @@ def segmented_curve(x_log: np.ndarray, intercept: float, slopes, breakpoints_log
     return y
 
 
+def _fitted(temperature, init, n_l):
+    """A group's rows of the temperature fit that hold a value (none where it was refused)."""
+    t = temperature
+    return t[(t["init"] == init) & (t["N_l"] == n_l) & np.isfinite(t["value"])]
+
+
 def _split_broken(g: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(points used by the fits, crystal points left out because their crystal broke),
     by the points table's ``fitted`` column."""
@@ -237,7 +243,7 @@ def fig4_granular_temperature(
             ax.errorbar(g["K_m"][ok], g["T_g"][ok], yerr=g["T_g_sem"][ok].fillna(0), fmt="o",
                         ms=4, color=colors[int(n_l)], label=f"$N_l$ = {int(n_l)}")  # fmt: skip
             ax.plot(broken["K_m"], broken["T_g"], "x", ms=5, color=colors[int(n_l)])
-            t = temperature[(temperature["init"] == init) & (temperature["N_l"] == n_l)]
+            t = _fitted(temperature, init, n_l)
             if t.empty or not ok.any():
                 continue
             bps = t[t["name"] == "breakpoint"].sort_values("index")
@@ -299,7 +305,7 @@ def fig5_slip_probability(
             if int(n_l) != int(fit_n_l):
                 continue
             s = slips[(slips["init"] == init) & (slips["N_l"] == n_l)]
-            t = temperature[(temperature["init"] == init) & (temperature["N_l"] == n_l)]
+            t = _fitted(temperature, init, n_l)
             bps = np.sort(t[t["name"] == "breakpoint"]["value"].to_numpy())
             regions = [
                 r.removeprefix("slope_")
