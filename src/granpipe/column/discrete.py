@@ -587,6 +587,121 @@ def _at_rest(v, modes):
     return True
 
 
+# Tolerances of the event-located integration (_advance), each relative to the scale
+# named after it: h the RK4 step, the event scale of _event_scale ([length] for a gap,
+# [force] for a stuck contact, [velocity] for a separation rate), vscale [velocity].
+END_TOL = 1e-12  # × h: a remaining interval this short means t_end is reached
+MERGE_TOL = 1e-6  # × h: a remainder this short after a step is merged into that step
+LATE_TOL = 1e-7  # × event scale: an event value this negative at a step start is late
+STICK_W_TOL = 1e-9  # × vscale: a separation rate this small repairs a late mode to STICK
+ROUNDOFF_TOL = 1e-9  # × event scale: a start value this negative is round-off of a crossing
+CROSS_TOL = 1e-12  # × event scale: an end value this negative is a crossing
+TINY_STEP = 1e-9  # × h: an event step this short counts toward the Zeno limit
+ZENO_MAX_TINY = 200  # consecutive tiny event steps that stop the run as STATUS_ZENO
+
+
+@njit
+def _is_late(G0, j, md, par, vscale):
+    """True if an event function of particle j (mode md) is below −LATE_TOL × its scale.
+
+    G0 : (N, 2) event values at the step start, mixed units (see _event_scale).
+    """
+    bad = False
+    for k in range(2):
+        if G0[j, k] < -LATE_TOL * _event_scale(md, k, par, vscale):
+            bad = True
+    return bad
+
+
+@njit
+def _repair_late(y, v, dv, t, tap_start, in_tap, par, modes, active, justrel, W, G0, stats,
+                 tangent, vscale):  # fmt: skip
+    """Repair the modes inconsistent at the start of a step (a re-crossing missed).
+
+    y, v, dv : (N,) [length], [velocity], [velocity] (tangent); modes (N,) int8; G0 (N, 2)
+    event values at t, refreshed here after a repair. A late mode (not STICK) becomes the
+    mode of its compression and separation rate (W rows W_C [length], W_W [velocity]); if
+    that is STICK, or a contact with a separation rate below STICK_W_TOL × vscale, the
+    contact joins the active set resolved by _resolve. Counts the repair in S_SAFETY.
+    """
+    n = y.size
+    late = False
+    for j in range(n):
+        if _is_late(G0, j, modes[j], par, vscale):
+            late = True
+    if not late:
+        return
+    stats[S_SAFETY] += 1
+    c = W[W_C]
+    w = W[W_W]
+    for j in range(n):
+        active[j] = False
+        md = modes[j]
+        if _is_late(G0, j, md, par, vscale) and md != STICK:
+            nm = _mode_from_state(c[j], w[j])
+            if nm == STICK or (nm != OPEN and abs(w[j]) < STICK_W_TOL * vscale):
+                active[j] = True
+            else:
+                modes[j] = nm
+    _resolve(y, v, t, tap_start, in_tap, par, modes, active, justrel, W, stats)
+    _snap_blocks(v, dv, t, tap_start, in_tap, par, modes, tangent)
+    _event_values(y, v, t, tap_start, in_tap, par, modes, W, G0)
+
+
+@njit
+def _first_event(y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, W, G0, G1, Gt, muted,
+                 vscale):  # fmt: skip
+    """Earliest event of the RK4 step (t, t + hs]: (s, j, k), j = −1 if none.
+
+    G0, G1 : (N, 2) event values at t and t + hs (mixed units, see _event_scale); s
+    [time] in [0, hs] from _locate, 0 for a crossing at the end of the previous step
+    within round-off. Muted (N, 2) events are skipped; a start value below −ROUNDOFF_TOL ×
+    scale is a late detection, left to _repair_late at the next step.
+    """
+    s_best = 2.0 * hs
+    jb = -1
+    kb = -1
+    for j in range(y.size):
+        for k in range(2):
+            g0 = G0[j, k]
+            g1 = G1[j, k]
+            if g0 >= _BIG or g1 > 0.0 or g1 >= g0 or muted[j, k]:
+                continue
+            if g0 > 0.0:
+                s = _locate(j, k, g0, g1, y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, W, Gt)
+            elif g0 > -ROUNDOFF_TOL * _event_scale(modes[j], k, par, vscale) and (
+                g1 < -CROSS_TOL * _event_scale(modes[j], k, par, vscale)
+            ):
+                s = 0.0
+            else:
+                continue
+            if s < s_best:
+                s_best = s
+                jb = j
+                kb = k
+    return s_best, jb, kb
+
+
+@njit
+def _take_step(y, v, dy, dv, W, tangent):
+    """Copy the RK4 end state (W rows W_Y1, W_V1, W_DY1, W_DV1) into y, v (and dy, dv)."""
+    for i in range(y.size):
+        y[i] = W[W_Y1, i]
+        v[i] = W[W_V1, i]
+        if tangent:
+            dy[i] = W[W_DY1, i]
+            dv[i] = W[W_DV1, i]
+
+
+@njit
+def _unchanged_modes(W, modes):
+    """True if the modes equal those saved in W row W_YS before the event."""
+    for i in range(modes.size):
+        if W[W_YS, i] != modes[i]:
+            return False
+    return True
+
+
 @njit
 def _advance(
     y,
@@ -614,14 +729,18 @@ def _advance(
 ):
     """Integrate from t to t_end (no drive switch inside) with located mode switches.
 
-    Returns (t, status, particle, steps).
+    Each step: repair late modes (_repair_late), one RK4 step of h (the last one up to
+    t_end), the earliest event in it (_first_event); without one the step is taken, with
+    one the step is redone up to the event and the event processed (_process_event).
+    More than ZENO_MAX_TINY consecutive event steps shorter than TINY_STEP × h stop the
+    run (STATUS_ZENO). Returns (t, status, particle, steps).
     """
     n = y.size
     steps = step0
     n_tiny = 0
     # an immediate event that changed no mode is not retried before the next full step
     muted = np.zeros((n, 2), dtype=np.bool_)
-    while t_end - t > 1e-12 * h:
+    while t_end - t > END_TOL * h:
         if not in_tap and _at_rest(v, modes):
             # Every contact stuck and the floor still: the state is exactly static (all
             # accelerations and velocities zero, required forces constant), so no event
@@ -629,68 +748,20 @@ def _advance(
             t = t_end
             break
         hs = min(h, t_end - t)
-        if t_end - (t + hs) < 1e-6 * h:
+        if t_end - (t + hs) < MERGE_TOL * h:
             hs = t_end - t
         _event_values(y, v, t, tap_start, in_tap, par, modes, W, G0)
-        # late detection: a mode inconsistent at the start of a step (missed re-crossing)
-        late = False
-        for j in range(n):
-            md = modes[j]
-            for k in range(2):
-                if G0[j, k] < -1e-7 * _event_scale(md, k, par, vscale):
-                    late = True
-        if late:
-            stats[S_SAFETY] += 1
-            c = W[W_C]
-            w = W[W_W]
-            for j in range(n):
-                active[j] = False
-                md = modes[j]
-                bad = False
-                for k in range(2):
-                    if G0[j, k] < -1e-7 * _event_scale(md, k, par, vscale):
-                        bad = True
-                if bad and md != STICK:
-                    nm = _mode_from_state(c[j], w[j])
-                    if nm == STICK or (nm != OPEN and abs(w[j]) < 1e-9 * vscale):
-                        active[j] = True
-                    else:
-                        modes[j] = nm
-            _resolve(y, v, t, tap_start, in_tap, par, modes, active, justrel, W, stats)
-            _snap_blocks(v, dv, t, tap_start, in_tap, par, modes, tangent)
-            _event_values(y, v, t, tap_start, in_tap, par, modes, W, G0)
+        _repair_late(
+            y, v, dv, t, tap_start, in_tap, par, modes, active, justrel, W, G0, stats, tangent,
+            vscale,
+        )  # fmt: skip
         _rk4_step(y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, tangent, W)
         _event_values(W[W_Y1], W[W_V1], t + hs, tap_start, in_tap, par, modes, W, G1)
-        s_best = 2.0 * hs
-        jb = -1
-        kb = -1
-        for j in range(n):
-            for k in range(2):
-                g0 = G0[j, k]
-                g1 = G1[j, k]
-                if g0 >= _BIG or g1 > 0.0 or g1 >= g0 or muted[j, k]:
-                    continue
-                if g0 > 0.0:
-                    s = _locate(
-                        j, k, g0, g1, y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, W, Gt
-                    )
-                elif g0 > -1e-9 * _event_scale(modes[j], k, par, vscale) and (
-                    g1 < -1e-12 * _event_scale(modes[j], k, par, vscale)
-                ):
-                    s = 0.0  # crossed at the end of the previous step, within round-off
-                else:
-                    continue  # a late detection, handled at the start of the next step
-                if s < s_best:
-                    s_best = s
-                    jb = j
-                    kb = k
+        s_best, jb, kb = _first_event(
+            y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, W, G0, G1, Gt, muted, vscale
+        )
         if jb < 0:
-            for i in range(n):
-                y[i] = W[W_Y1, i]
-                v[i] = W[W_V1, i]
-                if tangent:
-                    dy[i] = W[W_DY1, i]
-                    dv[i] = W[W_DV1, i]
+            _take_step(y, v, dy, dv, W, tangent)
             t += hs
             steps += 1
             stats[S_STEPS] += 1
@@ -698,12 +769,7 @@ def _advance(
             muted[:, :] = False
         else:
             _rk4_step(y, v, dy, dv, t, s_best, tap_start, in_tap, par, modes, tangent, W)
-            for i in range(n):
-                y[i] = W[W_Y1, i]
-                v[i] = W[W_V1, i]
-                if tangent:
-                    dy[i] = W[W_DY1, i]
-                    dv[i] = W[W_DV1, i]
+            _take_step(y, v, dy, dv, W, tangent)
             t += s_best
             stats[S_EVENTS] += 1
             for i in range(n):
@@ -729,16 +795,11 @@ def _advance(
                 W,
                 stats,
             )
-            if s_best == 0.0:
-                same = True
-                for i in range(n):
-                    if W[W_YS, i] != modes[i]:
-                        same = False
-                if same:
-                    muted[jb, kb] = True
-            if s_best < 1e-9 * h:
+            if s_best == 0.0 and _unchanged_modes(W, modes):
+                muted[jb, kb] = True
+            if s_best < TINY_STEP * h:
                 n_tiny += 1
-                if n_tiny > 200:
+                if n_tiny > ZENO_MAX_TINY:
                     return t, STATUS_ZENO, jb, steps
             else:
                 n_tiny = 0
