@@ -55,6 +55,7 @@ is integrated with the same fixed-step RK4 and its analytic Jacobian.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -587,6 +588,65 @@ def _at_rest(v, modes):
     return True
 
 
+class ChainState(NamedTuple):
+    """The chain's arrays, updated in place: positions y [length] and velocities v
+    [length/time], shape (N,); the tangent vector dy, dv in the same units, (N,); the
+    contact modes (N,) int8 (OPEN, LOAD, UNLOAD, STICK; entry 0 the floor contact)."""
+
+    y: np.ndarray
+    v: np.ndarray
+    dy: np.ndarray
+    dv: np.ndarray
+    modes: np.ndarray
+
+
+class Integrator(NamedTuple):
+    """Fixed inputs of a run: ``par`` (P_* layout), RK4 step ``h`` [time], ``smooth``
+    (smooth-sign model), ``tangent`` (evolve dy, dv), ``saltation`` (saltation at σ
+    switches), tangent-norm scales ``sy`` [length] and ``sv`` [length/time], the velocity
+    scale ``vscale`` [length/time] of the tolerances."""
+
+    par: np.ndarray
+    h: float
+    smooth: bool
+    tangent: bool
+    saltation: bool
+    sy: float
+    sv: float
+    vscale: float
+
+
+class Records(NamedTuple):
+    """Outputs filled in place: records ``rec_y``, ``rec_v`` (n_rec, N) at rec_t0 + i
+    rec_dt [time]; samples ``samp_y``, ``samp_v``, ``samp_modes`` (n_periods, n_frac, N) at
+    (k + samp_fracs[f]) T; ``log_growth`` (n_periods,); counters ``stats`` (N_STATS,)."""
+
+    rec_t0: float
+    rec_dt: float
+    rec_y: np.ndarray
+    rec_v: np.ndarray
+    samp_fracs: np.ndarray
+    samp_y: np.ndarray
+    samp_v: np.ndarray
+    samp_modes: np.ndarray
+    log_growth: np.ndarray
+    stats: np.ndarray
+
+
+class WorkBuffers(NamedTuple):
+    """Scratch of the event-located integration: ``W`` (N_WORK, N) (rows W_*), event
+    values ``G0``, ``G1``, ``Gt`` (N, 2), the active set ``active`` and ``justrel`` (N,)
+    bool, and the counters ``stats`` (N_STATS,) int64."""
+
+    W: np.ndarray
+    G0: np.ndarray
+    G1: np.ndarray
+    Gt: np.ndarray
+    active: np.ndarray
+    justrel: np.ndarray
+    stats: np.ndarray
+
+
 # Tolerances of the event-located integration (_advance), each relative to the scale
 # named after it: h the RK4 step, the event scale of _event_scale ([length] for a gap,
 # [force] for a stuck contact, [velocity] for a separation rate), vscale [velocity].
@@ -614,9 +674,20 @@ def _is_late(G0, j, md, par, vscale):
 
 
 @njit
+def _any_late(G0, modes, par, vscale):
+    """True if any particle has a late event value (_is_late); G0 (N, 2), modes (N,)."""
+    late = False
+    for j in range(modes.size):
+        if _is_late(G0, j, modes[j], par, vscale):
+            late = True
+    return late
+
+
+@njit
 def _repair_late(y, v, dv, t, tap_start, in_tap, par, modes, active, justrel, W, G0, stats,
                  tangent, vscale):  # fmt: skip
-    """Repair the modes inconsistent at the start of a step (a re-crossing missed).
+    """Repair the modes inconsistent at the start of a step (a re-crossing missed, see
+    _any_late).
 
     y, v, dv : (N,) [length], [velocity], [velocity] (tangent); modes (N,) int8; G0 (N, 2)
     event values at t, refreshed here after a repair. A late mode (not STICK) becomes the
@@ -625,12 +696,6 @@ def _repair_late(y, v, dv, t, tap_start, in_tap, par, modes, active, justrel, W,
     contact joins the active set resolved by _resolve. Counts the repair in S_SAFETY.
     """
     n = y.size
-    late = False
-    for j in range(n):
-        if _is_late(G0, j, modes[j], par, vscale):
-            late = True
-    if not late:
-        return
     stats[S_SAFETY] += 1
     c = W[W_C]
     w = W[W_W]
@@ -703,38 +768,20 @@ def _unchanged_modes(W, modes):
 
 
 @njit
-def _advance(
-    y,
-    v,
-    dy,
-    dv,
-    modes,
-    t,
-    t_end,
-    h,
-    tap_start,
-    in_tap,
-    par,
-    tangent,
-    saltation,
-    W,
-    G0,
-    G1,
-    Gt,
-    active,
-    justrel,
-    stats,
-    vscale,
-    step0,
-):
+def _advance(state, integ, work, t, t_end, tap_start, in_tap, step0):
     """Integrate from t to t_end (no drive switch inside) with located mode switches.
 
     Each step: repair late modes (_repair_late), one RK4 step of h (the last one up to
     t_end), the earliest event in it (_first_event); without one the step is taken, with
     one the step is redone up to the event and the event processed (_process_event).
     More than ZENO_MAX_TINY consecutive event steps shorter than TINY_STEP × h stop the
-    run (STATUS_ZENO). Returns (t, status, particle, steps).
+    run (STATUS_ZENO). state : ChainState, integ : Integrator, work : WorkBuffers;
+    t, t_end, tap_start [time]; in_tap bool; step0 steps so far. Returns (t, status,
+    particle, steps).
     """
+    y, v, dy, dv, modes = state
+    par, h, _, tangent, saltation, _, _, vscale = integ
+    W, G0, G1, Gt, active, justrel, stats = work
     n = y.size
     steps = step0
     n_tiny = 0
@@ -751,10 +798,11 @@ def _advance(
         if t_end - (t + hs) < MERGE_TOL * h:
             hs = t_end - t
         _event_values(y, v, t, tap_start, in_tap, par, modes, W, G0)
-        _repair_late(
-            y, v, dv, t, tap_start, in_tap, par, modes, active, justrel, W, G0, stats, tangent,
-            vscale,
-        )  # fmt: skip
+        if _any_late(G0, modes, par, vscale):
+            _repair_late(
+                y, v, dv, t, tap_start, in_tap, par, modes, active, justrel, W, G0, stats,
+                tangent, vscale,
+            )  # fmt: skip
         _rk4_step(y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, tangent, W)
         _event_values(W[W_Y1], W[W_V1], t + hs, tap_start, in_tap, par, modes, W, G1)
         s_best, jb, kb = _first_event(
@@ -941,33 +989,7 @@ def _tangent_norm(dy, dv, sy, sv):
 
 
 @njit
-def run_periods(
-    y,
-    v,
-    dy,
-    dv,
-    modes,
-    par,
-    h,
-    k0,
-    n_periods,
-    smooth,
-    tangent,
-    saltation,
-    sy,
-    sv,
-    vscale,
-    rec_t0,
-    rec_dt,
-    rec_y,
-    rec_v,
-    samp_fracs,
-    samp_y,
-    samp_v,
-    samp_modes,
-    log_growth,
-    stats,
-):
+def run_periods(state, integ, rec, k0, n_periods):
     """Evolve the column over taps k0 .. k0 + n_periods − 1 (t from k0 T to (k0+n) T).
 
     State arrays are updated in place. Records (if ``rec_y`` has rows) at times
@@ -979,10 +1001,16 @@ def run_periods(
     sqrt(Σ (dy/sy)² + (dv/sv)²)) at the end of every period and
     ``log_growth[k − k0]`` gets the log of its growth over that period.
 
+    state : ChainState (updated in place); integ : Integrator; rec : Records (filled
+    in place); k0, n_periods : int.
+
     Returns
     -------
     status, particle, time, n_records
     """
+    y, v, dy, dv, modes = state
+    par, h, smooth, tangent, saltation, sy, sv, vscale = integ
+    rec_t0, rec_dt, rec_y, rec_v, samp_fracs, samp_y, samp_v, samp_modes, log_growth, stats = rec
     n = y.size
     W = np.zeros((N_WORK, n))
     G0 = np.zeros((n, 2))
@@ -990,6 +1018,7 @@ def run_periods(
     Gt = np.zeros((n, 2))
     active = np.zeros(n, dtype=np.bool_)
     justrel = np.zeros(n, dtype=np.bool_)
+    work = WorkBuffers(W, G0, G1, Gt, active, justrel, stats)
     T = par[P_T]
     tau = par[P_TAU] if par[P_A] > 0.0 else 0.0
     n_rec_max = rec_y.shape[0]
@@ -1051,28 +1080,7 @@ def run_periods(
                     )
                 else:
                     t, status, who, steps = _advance(
-                        y,
-                        v,
-                        dy,
-                        dv,
-                        modes,
-                        t,
-                        stop,
-                        h,
-                        t_start,
-                        in_tap,
-                        par,
-                        tangent,
-                        saltation,
-                        W,
-                        G0,
-                        G1,
-                        Gt,
-                        active,
-                        justrel,
-                        stats,
-                        vscale,
-                        steps,
+                        state, integ, work, t, stop, t_start, in_tap, steps
                     )
                 if status != STATUS_OK:
                     return status, who, t, i_rec
@@ -1293,31 +1301,22 @@ def simulate(
         state.dy /= nrm
         state.dv /= nrm
     status, who, t, n_done = run_periods(
-        state.y,
-        state.v,
-        state.dy,
-        state.dv,
-        state.modes,
-        p.as_array(),
-        h,
+        ChainState(state.y, state.v, state.dy, state.dv, state.modes),
+        Integrator(
+            p.as_array(),
+            h,
+            bool(p.smooth),
+            bool(tangent),
+            bool(saltation),
+            sy,
+            sv,
+            p.velocity_scale,
+        ),  # fmt: skip
+        Records(
+            rec_t0, float(record_dt), rec_y, rec_v, fr, samp, samp_v, samp_modes, growth, stats
+        ),
         k0,
         int(n_periods),
-        bool(p.smooth),
-        bool(tangent),
-        bool(saltation),
-        sy,
-        sv,
-        p.velocity_scale,
-        rec_t0,
-        float(record_dt),
-        rec_y,
-        rec_v,
-        fr,
-        samp,
-        samp_v,
-        samp_modes,
-        growth,
-        stats,
     )
     if status != STATUS_OK:
         _raise_status(status, who, t, p, **context)
