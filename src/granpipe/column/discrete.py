@@ -151,6 +151,79 @@ N_WORK = 34
 
 
 # --------------------------------------------------------------------------- drive
+class ChainState(NamedTuple):
+    """The chain's arrays, updated in place: positions y [length] and velocities v
+    [length/time], shape (N,); the tangent vector dy, dv in the same units, (N,); the
+    contact modes (N,) int8 (OPEN, LOAD, UNLOAD, STICK; entry 0 the floor contact)."""
+
+    y: np.ndarray
+    v: np.ndarray
+    dy: np.ndarray
+    dv: np.ndarray
+    modes: np.ndarray
+
+
+class Integrator(NamedTuple):
+    """Fixed inputs of a run: ``par`` (P_* layout), RK4 step ``h`` [time], ``smooth``
+    (smooth-sign model), ``tangent`` (evolve dy, dv), ``saltation`` (saltation at σ
+    switches), tangent-norm scales ``sy`` [length] and ``sv`` [length/time], the velocity
+    scale ``vscale`` [length/time] of the tolerances."""
+
+    par: np.ndarray
+    h: float
+    smooth: bool
+    tangent: bool
+    saltation: bool
+    sy: float
+    sv: float
+    vscale: float
+
+
+class Records(NamedTuple):
+    """Outputs filled in place: records ``rec_y``, ``rec_v`` (n_rec, N) at rec_t0 + i
+    rec_dt [time]; samples ``samp_y``, ``samp_v``, ``samp_modes`` (n_periods, n_frac, N) at
+    (k + samp_fracs[f]) T; ``log_growth`` (n_periods,); counters ``stats`` (N_STATS,)."""
+
+    rec_t0: float
+    rec_dt: float
+    rec_y: np.ndarray
+    rec_v: np.ndarray
+    samp_fracs: np.ndarray
+    samp_y: np.ndarray
+    samp_v: np.ndarray
+    samp_modes: np.ndarray
+    log_growth: np.ndarray
+    stats: np.ndarray
+
+
+class WorkBuffers(NamedTuple):
+    """Scratch of the event-located integration: ``W`` (N_WORK, N) (rows W_*), event
+    values ``G0``, ``G1``, ``Gt`` (N, 2), the active set ``active`` and ``justrel`` (N,)
+    bool, and the counters ``stats`` (N_STATS,) int64."""
+
+    W: np.ndarray
+    G0: np.ndarray
+    G1: np.ndarray
+    Gt: np.ndarray
+    active: np.ndarray
+    justrel: np.ndarray
+    stats: np.ndarray
+
+
+# Tolerances of the integration (_advance, _advance_smooth, run_periods), each relative to the scale
+# named after it: h the RK4 step, the event scale of _event_scale ([length] for a gap,
+# [force] for a stuck contact, [velocity] for a separation rate), vscale [velocity].
+END_TOL = 1e-12  # × h: a remaining interval this short means t_end is reached
+MERGE_TOL = 1e-6  # × h: a remainder this short after a step is merged into that step
+LATE_TOL = 1e-7  # × event scale: an event value this negative at a step start is late
+STICK_W_TOL = 1e-9  # × vscale: a separation rate this small repairs a late mode to STICK
+ROUNDOFF_TOL = 1e-9  # × event scale: a start value this negative is round-off of a crossing
+CROSS_TOL = 1e-12  # × event scale: an end value this negative is a crossing
+TIME_TOL = 1e-9  # × h: times this close are equal (records, samples, segment ends)
+TINY_STEP = 1e-9  # × h: an event step this short counts toward the Zeno limit
+ZENO_MAX_TINY = 200  # consecutive tiny event steps that stop the run as STATUS_ZENO
+
+
 @njit
 def floor_motion(t, tap_start, in_tap, a, omega):
     """Floor position, velocity, acceleration at time t (Eqs. 2–3).
@@ -342,8 +415,12 @@ def _event_scale(md, k, par, vscale):
 
 
 @njit
-def _locate(j, k, fa0, fb0, y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, W, Gt):
-    """Time s in (0, hs] just past the zero of event function (j, k) (Illinois)."""
+def _locate(j, k, fa0, fb0, state, par, t, hs, tap_start, in_tap, W, Gt):
+    """Time s in (0, hs] just past the zero of event function (j, k) (Illinois).
+
+    fa0, fb0 : its values at t and t + hs; state : ChainState at t; W, Gt scratch.
+    """
+    y, v, dy, dv, modes = state
     a_s = 0.0
     b_s = hs
     fa = fa0
@@ -492,28 +569,12 @@ def _check_state(y, t, par, yf, step):
 
 
 @njit
-def _process_event(
-    y,
-    v,
-    dy,
-    dv,
-    t,
-    tap_start,
-    in_tap,
-    par,
-    modes,
-    G0,
-    Gt,
-    jstar,
-    kstar,
-    tangent,
-    saltation,
-    active,
-    justrel,
-    W,
-    stats,
-):
-    """Mode changes at a located event; saltation of the tangent for w-type switches."""
+def _process_event(state, integ, work, t, tap_start, in_tap, jstar, kstar):
+    """Mode changes at a located event (jstar, kstar) at t; saltation of the tangent for
+    w-type switches. state : ChainState, integ : Integrator, work : WorkBuffers."""
+    y, v, dy, dv, modes = state
+    par, _, _, tangent, saltation, _, _, _ = integ
+    W, G0, _, Gt, active, justrel, stats = work
     n = y.size
     yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
     # accelerations just before the switch (old modes) and the switching rate of jstar
@@ -561,8 +622,14 @@ def _process_event(
 
 
 @njit
-def _time_event(y, v, dv, t, tap_start, in_tap, par, modes, active, justrel, W, stats, tangent):
-    """Floor velocity jumped (start or end of a tap): re-derive the floor contact's mode."""
+def _time_event(state, integ, work, t, tap_start, in_tap):
+    """Floor velocity jumped (start or end of a tap): re-derive the floor contact's mode.
+
+    state : ChainState, integ : Integrator, work : WorkBuffers; t, tap_start [time].
+    """
+    y, v, _, dv, modes = state
+    par, _, _, tangent, _, _, _, _ = integ
+    W, _, _, _, active, justrel, stats = work
     n = y.size
     yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
     c0 = par[P_R] - (y[0] - yf)
@@ -586,78 +653,6 @@ def _at_rest(v, modes):
         if modes[i] != STICK or v[i] != 0.0:
             return False
     return True
-
-
-class ChainState(NamedTuple):
-    """The chain's arrays, updated in place: positions y [length] and velocities v
-    [length/time], shape (N,); the tangent vector dy, dv in the same units, (N,); the
-    contact modes (N,) int8 (OPEN, LOAD, UNLOAD, STICK; entry 0 the floor contact)."""
-
-    y: np.ndarray
-    v: np.ndarray
-    dy: np.ndarray
-    dv: np.ndarray
-    modes: np.ndarray
-
-
-class Integrator(NamedTuple):
-    """Fixed inputs of a run: ``par`` (P_* layout), RK4 step ``h`` [time], ``smooth``
-    (smooth-sign model), ``tangent`` (evolve dy, dv), ``saltation`` (saltation at σ
-    switches), tangent-norm scales ``sy`` [length] and ``sv`` [length/time], the velocity
-    scale ``vscale`` [length/time] of the tolerances."""
-
-    par: np.ndarray
-    h: float
-    smooth: bool
-    tangent: bool
-    saltation: bool
-    sy: float
-    sv: float
-    vscale: float
-
-
-class Records(NamedTuple):
-    """Outputs filled in place: records ``rec_y``, ``rec_v`` (n_rec, N) at rec_t0 + i
-    rec_dt [time]; samples ``samp_y``, ``samp_v``, ``samp_modes`` (n_periods, n_frac, N) at
-    (k + samp_fracs[f]) T; ``log_growth`` (n_periods,); counters ``stats`` (N_STATS,)."""
-
-    rec_t0: float
-    rec_dt: float
-    rec_y: np.ndarray
-    rec_v: np.ndarray
-    samp_fracs: np.ndarray
-    samp_y: np.ndarray
-    samp_v: np.ndarray
-    samp_modes: np.ndarray
-    log_growth: np.ndarray
-    stats: np.ndarray
-
-
-class WorkBuffers(NamedTuple):
-    """Scratch of the event-located integration: ``W`` (N_WORK, N) (rows W_*), event
-    values ``G0``, ``G1``, ``Gt`` (N, 2), the active set ``active`` and ``justrel`` (N,)
-    bool, and the counters ``stats`` (N_STATS,) int64."""
-
-    W: np.ndarray
-    G0: np.ndarray
-    G1: np.ndarray
-    Gt: np.ndarray
-    active: np.ndarray
-    justrel: np.ndarray
-    stats: np.ndarray
-
-
-# Tolerances of the event-located integration (_advance), each relative to the scale
-# named after it: h the RK4 step, the event scale of _event_scale ([length] for a gap,
-# [force] for a stuck contact, [velocity] for a separation rate), vscale [velocity].
-END_TOL = 1e-12  # × h: a remaining interval this short means t_end is reached
-MERGE_TOL = 1e-6  # × h: a remainder this short after a step is merged into that step
-LATE_TOL = 1e-7  # × event scale: an event value this negative at a step start is late
-STICK_W_TOL = 1e-9  # × vscale: a separation rate this small repairs a late mode to STICK
-ROUNDOFF_TOL = 1e-9  # × event scale: a start value this negative is round-off of a crossing
-CROSS_TOL = 1e-12  # × event scale: an end value this negative is a crossing
-TINY_STEP = 1e-9  # × h: an event step this short counts toward the Zeno limit
-ZENO_MAX_TINY = 200  # consecutive tiny event steps that stop the run as STATUS_ZENO
 
 
 @njit
@@ -684,8 +679,7 @@ def _any_late(G0, modes, par, vscale):
 
 
 @njit
-def _repair_late(y, v, dv, t, tap_start, in_tap, par, modes, active, justrel, W, G0, stats,
-                 tangent, vscale):  # fmt: skip
+def _repair_late(state, integ, work, t, tap_start, in_tap):
     """Repair the modes inconsistent at the start of a step (a re-crossing missed, see
     _any_late).
 
@@ -694,7 +688,11 @@ def _repair_late(y, v, dv, t, tap_start, in_tap, par, modes, active, justrel, W,
     mode of its compression and separation rate (W rows W_C [length], W_W [velocity]); if
     that is STICK, or a contact with a separation rate below STICK_W_TOL × vscale, the
     contact joins the active set resolved by _resolve. Counts the repair in S_SAFETY.
+    state : ChainState, integ : Integrator, work : WorkBuffers.
     """
+    y, v, _, dv, modes = state
+    par, _, _, tangent, _, _, _, vscale = integ
+    W, G0, _, _, active, justrel, stats = work
     n = y.size
     stats[S_SAFETY] += 1
     c = W[W_C]
@@ -714,15 +712,20 @@ def _repair_late(y, v, dv, t, tap_start, in_tap, par, modes, active, justrel, W,
 
 
 @njit
-def _first_event(y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, W, G0, G1, Gt, muted,
-                 vscale):  # fmt: skip
+def _first_event(state, integ, work, t, hs, tap_start, in_tap, muted):
     """Earliest event of the RK4 step (t, t + hs]: (s, j, k), j = −1 if none.
 
     G0, G1 : (N, 2) event values at t and t + hs (mixed units, see _event_scale); s
     [time] in [0, hs] from _locate, 0 for a crossing at the end of the previous step
     within round-off. Muted (N, 2) events are skipped; a start value below −ROUNDOFF_TOL ×
-    scale is a late detection, left to _repair_late at the next step.
+    scale is a late detection, left to _repair_late at the next step. state :
+    ChainState, integ : Integrator, work : WorkBuffers.
     """
+    y = state.y
+    modes = state.modes
+    par = integ.par
+    vscale = integ.vscale
+    W, G0, G1, Gt, _, _, _ = work
     s_best = 2.0 * hs
     jb = -1
     kb = -1
@@ -733,7 +736,7 @@ def _first_event(y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, W, G0, G1, 
             if g0 >= _BIG or g1 > 0.0 or g1 >= g0 or muted[j, k]:
                 continue
             if g0 > 0.0:
-                s = _locate(j, k, g0, g1, y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, W, Gt)
+                s = _locate(j, k, g0, g1, state, par, t, hs, tap_start, in_tap, W, Gt)
             elif g0 > -ROUNDOFF_TOL * _event_scale(modes[j], k, par, vscale) and (
                 g1 < -CROSS_TOL * _event_scale(modes[j], k, par, vscale)
             ):
@@ -799,15 +802,10 @@ def _advance(state, integ, work, t, t_end, tap_start, in_tap, step0):
             hs = t_end - t
         _event_values(y, v, t, tap_start, in_tap, par, modes, W, G0)
         if _any_late(G0, modes, par, vscale):
-            _repair_late(
-                y, v, dv, t, tap_start, in_tap, par, modes, active, justrel, W, G0, stats,
-                tangent, vscale,
-            )  # fmt: skip
+            _repair_late(state, integ, work, t, tap_start, in_tap)
         _rk4_step(y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, tangent, W)
         _event_values(W[W_Y1], W[W_V1], t + hs, tap_start, in_tap, par, modes, W, G1)
-        s_best, jb, kb = _first_event(
-            y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, W, G0, G1, Gt, muted, vscale
-        )
+        s_best, jb, kb = _first_event(state, integ, work, t, hs, tap_start, in_tap, muted)
         if jb < 0:
             _take_step(y, v, dy, dv, W, tangent)
             t += hs
@@ -822,27 +820,7 @@ def _advance(state, integ, work, t, t_end, tap_start, in_tap, step0):
             stats[S_EVENTS] += 1
             for i in range(n):
                 W[W_YS, i] = modes[i]
-            _process_event(
-                y,
-                v,
-                dy,
-                dv,
-                t,
-                tap_start,
-                in_tap,
-                par,
-                modes,
-                G0,
-                Gt,
-                jb,
-                kb,
-                tangent,
-                saltation,
-                active,
-                justrel,
-                W,
-                stats,
-            )
+            _process_event(state, integ, work, t, tap_start, in_tap, jb, kb)
             if s_best == 0.0 and _unchanged_modes(W, modes):
                 muted[jb, kb] = True
             if s_best < TINY_STEP * h:
@@ -920,8 +898,14 @@ def _smooth_tangent(y, v, dy, dv, t, tap_start, in_tap, par, dF, dacc):
 
 
 @njit
-def _advance_smooth(y, v, dy, dv, t, t_end, h, tap_start, in_tap, par, tangent, W, stats, step0):
-    """Fixed-step RK4 of the smooth model (and its variational equations) to t_end."""
+def _advance_smooth(state, integ, work, t, t_end, tap_start, in_tap, step0):
+    """Fixed-step RK4 of the smooth model (and its variational equations) to t_end.
+
+    state : ChainState, integ : Integrator, work : WorkBuffers; t, t_end [time].
+    """
+    y, v, dy, dv, _ = state
+    par, h, _, tangent, _, _, _, _ = integ
+    W, _, _, _, _, _, stats = work
     n = y.size
     steps = step0
     F = W[W_F]
@@ -929,9 +913,9 @@ def _advance_smooth(y, v, dy, dv, t, t_end, h, tap_start, in_tap, par, tangent, 
     vt = W[W_VT]
     dyt = W[W_DYT]
     dvt = W[W_DVT]
-    while t_end - t > 1e-12 * h:
+    while t_end - t > END_TOL * h:
         hs = min(h, t_end - t)
-        if t_end - (t + hs) < 1e-6 * h:
+        if t_end - (t + hs) < MERGE_TOL * h:
             hs = t_end - t
         for st in range(4):
             if st == 0:
@@ -1025,7 +1009,7 @@ def run_periods(state, integ, rec, k0, n_periods):
     i_rec = 0
     t = k0 * T
     # skip records before the start
-    while i_rec < n_rec_max and rec_t0 + i_rec * rec_dt < t - 1e-9 * h:
+    while i_rec < n_rec_max and rec_t0 + i_rec * rec_dt < t - TIME_TOL * h:
         i_rec += 1
     steps = 0
     n_samp = samp_fracs.size
@@ -1053,12 +1037,10 @@ def run_periods(state, integ, rec, k0, n_periods):
                 in_tap = False
             t = seg_a
             if not smooth and tau > 0.0:
-                _time_event(
-                    y, v, dv, t, t_start, in_tap, par, modes, active, justrel, W, stats, tangent
-                )
+                _time_event(state, integ, work, t, t_start, in_tap)
             while True:
                 # record / sample everything due at the current time
-                while i_rec < n_rec_max and rec_t0 + i_rec * rec_dt <= t + 1e-9 * h:
+                while i_rec < n_rec_max and rec_t0 + i_rec * rec_dt <= t + TIME_TOL * h:
                     for i in range(n):
                         rec_y[i_rec, i] = y[i]
                         rec_v[i_rec, i] = v[i]
@@ -1070,13 +1052,13 @@ def run_periods(state, integ, rec, k0, n_periods):
                         stop = tr
                 for f in range(n_samp):
                     ts = (k + samp_fracs[f]) * T
-                    if t + 1e-9 * h < ts < stop:
+                    if t + TIME_TOL * h < ts < stop:
                         stop = ts
-                if stop - t <= 1e-9 * h:
+                if stop - t <= TIME_TOL * h:
                     break
                 if smooth:
                     t, status, who, steps = _advance_smooth(
-                        y, v, dy, dv, t, stop, h, t_start, in_tap, par, tangent, W, stats, steps
+                        state, integ, work, t, stop, t_start, in_tap, steps
                     )
                 else:
                     t, status, who, steps = _advance(
@@ -1086,7 +1068,7 @@ def run_periods(state, integ, rec, k0, n_periods):
                     return status, who, t, i_rec
                 for f in range(n_samp):
                     ts = (k + samp_fracs[f]) * T
-                    if abs(t - ts) <= 1e-9 * h:
+                    if abs(t - ts) <= TIME_TOL * h:
                         for i in range(n):
                             samp_y[kk, f, i] = y[i]
                             samp_v[kk, f, i] = v[i]
@@ -1106,7 +1088,7 @@ def run_periods(state, integ, rec, k0, n_periods):
                 dv[i] /= nrm
         t = (k + 1) * T
     # record at the final time if due
-    while i_rec < n_rec_max and rec_t0 + i_rec * rec_dt <= t + 1e-9 * h:
+    while i_rec < n_rec_max and rec_t0 + i_rec * rec_dt <= t + TIME_TOL * h:
         for i in range(n):
             rec_y[i_rec, i] = y[i]
             rec_v[i_rec, i] = v[i]
