@@ -319,6 +319,34 @@ def _tangent_accelerations(dy, par, modes, dc, dF, dacc):
 
 # --------------------------------------------------------------------------- RK4
 @njit
+def rk4_stage(x, k, f, out):
+    """Stage point of classical RK4: out = x + f k, with f = c_s h (c_s = 1/2 or 1).
+
+    x, k, out : (n,) arrays (a state and its rate, in the state's units per time); f
+    [time]. Shared by the discrete chain and the continuum solvers.
+    """
+    for i in range(x.size):
+        out[i] = x[i] + f * k[i]
+
+
+@njit
+def rk4_combine(x, k1, k2, k3, k4, h, out):
+    """End of a classical RK4 step: out = x + h/6 (k1 + 2 k2 + 2 k3 + k4); out may be x.
+
+    x, k1..k4, out : (n,) arrays (a state and its four stage rates); h [time].
+    """
+    h6 = h / 6.0
+    for i in range(x.size):
+        out[i] = x[i] + h6 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+
+
+@njit
+def _rk4_rows(x, W, row, h, out):
+    """rk4_combine with the stage rates in rows row .. row + 3 of W."""
+    rk4_combine(x, W[row], W[row + 1], W[row + 2], W[row + 3], h, out)
+
+
+@njit
 def _rk4_step(y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, tangent, W):
     """One classical RK4 step of size ``hs`` with frozen modes into W[W_Y1..W_DV1]."""
     n = y.size
@@ -340,12 +368,12 @@ def _rk4_step(y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, tangent, W):
         else:
             frac = 0.5 if st < 3 else 1.0
             tt = t + frac * hs
-            for i in range(n):
-                yt[i] = y[i] + frac * hs * W[W_KY + st - 1, i]
-                vt[i] = v[i] + frac * hs * W[W_KV + st - 1, i]
-                if tangent:
-                    dyt[i] = dy[i] + frac * hs * W[W_KDY + st - 1, i]
-                    dvt[i] = dv[i] + frac * hs * W[W_KDV + st - 1, i]
+            f = frac * hs
+            rk4_stage(y, W[W_KY + st - 1], f, yt)
+            rk4_stage(v, W[W_KV + st - 1], f, vt)
+            if tangent:
+                rk4_stage(dy, W[W_KDY + st - 1], f, dyt)
+                rk4_stage(dv, W[W_KDV + st - 1], f, dvt)
         _accelerations(yt, tt, tap_start, in_tap, par, modes, c, F, W[W_KV + st])
         for i in range(n):
             W[W_KY + st, i] = vt[i]
@@ -353,21 +381,11 @@ def _rk4_step(y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, tangent, W):
             _tangent_accelerations(dyt, par, modes, W[W_DC], W[W_DF], W[W_KDV + st])
             for i in range(n):
                 W[W_KDY + st, i] = dvt[i]
-    h6 = hs / 6.0
-    for i in range(n):
-        W[W_Y1, i] = y[i] + h6 * (
-            W[W_KY, i] + 2.0 * W[W_KY + 1, i] + 2.0 * W[W_KY + 2, i] + W[W_KY + 3, i]
-        )
-        W[W_V1, i] = v[i] + h6 * (
-            W[W_KV, i] + 2.0 * W[W_KV + 1, i] + 2.0 * W[W_KV + 2, i] + W[W_KV + 3, i]
-        )
-        if tangent:
-            W[W_DY1, i] = dy[i] + h6 * (
-                W[W_KDY, i] + 2.0 * W[W_KDY + 1, i] + 2.0 * W[W_KDY + 2, i] + W[W_KDY + 3, i]
-            )
-            W[W_DV1, i] = dv[i] + h6 * (
-                W[W_KDV, i] + 2.0 * W[W_KDV + 1, i] + 2.0 * W[W_KDV + 2, i] + W[W_KDV + 3, i]
-            )
+    _rk4_rows(y, W, W_KY, hs, W[W_Y1])
+    _rk4_rows(v, W, W_KV, hs, W[W_V1])
+    if tangent:
+        _rk4_rows(dy, W, W_KDY, hs, W[W_DY1])
+        _rk4_rows(dv, W, W_KDV, hs, W[W_DV1])
 
 
 # --------------------------------------------------------------------------- events
