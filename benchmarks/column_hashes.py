@@ -28,17 +28,7 @@ RELAX = {
     "tap_duration": 0.05,
     "T": 1.0,
 }
-CHAOS = {
-    "N": 10,
-    "m": 0.001,
-    "r": 0.005,
-    "g": 9.81,
-    "stiffness_factor": 50.0,
-    "e": 0.09,
-    "a": 0.005,
-    "tap_duration": 0.05,
-    "T": 0.15,
-}
+CHAOS = {**RELAX, "N": 10, "a": 0.005, "T": 0.15}
 
 
 def h(x):

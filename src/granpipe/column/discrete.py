@@ -57,9 +57,14 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
-from .._jit import njit
+from .._jit import JIT_OPTIONS, njit
+
+# small helpers called every RK4 step (the phases of _advance, the RK4 stages), inlined by
+# numba into their callers (measured: as plain calls the column ran 5 to 25 % slower)
+njit_inline = numba.njit(inline="always", **JIT_OPTIONS)
 
 __all__ = [
     "OPEN",
@@ -318,7 +323,7 @@ def _tangent_accelerations(dy, par, modes, dc, dF, dacc):
 
 
 # --------------------------------------------------------------------------- RK4
-@njit
+@njit_inline
 def rk4_stage(x, k, f, out):
     """Stage point of classical RK4: out = x + f k, with f = c_s h (c_s = 1/2 or 1).
 
@@ -329,7 +334,7 @@ def rk4_stage(x, k, f, out):
         out[i] = x[i] + f * k[i]
 
 
-@njit
+@njit_inline
 def rk4_combine(x, k1, k2, k3, k4, h, out):
     """End of a classical RK4 step: out = x + h/6 (k1 + 2 k2 + 2 k3 + k4); out may be x.
 
@@ -340,7 +345,7 @@ def rk4_combine(x, k1, k2, k3, k4, h, out):
         out[i] = x[i] + h6 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
 
 
-@njit
+@njit_inline
 def _rk4_rows(x, W, row, h, out):
     """rk4_combine with the stage rates in rows row .. row + 3 of W."""
     rk4_combine(x, W[row], W[row + 1], W[row + 2], W[row + 3], h, out)
@@ -686,7 +691,7 @@ def _is_late(G0, j, md, par, vscale):
     return bad
 
 
-@njit
+@njit_inline
 def _any_late(G0, modes, par, vscale):
     """True if any particle has a late event value (_is_late); G0 (N, 2), modes (N,)."""
     late = False
@@ -729,7 +734,7 @@ def _repair_late(state, integ, work, t, tap_start, in_tap):
     _event_values(y, v, t, tap_start, in_tap, par, modes, W, G0)
 
 
-@njit
+@njit_inline
 def _first_event(state, integ, work, t, hs, tap_start, in_tap, muted):
     """Earliest event of the RK4 step (t, t + hs]: (s, j, k), j = −1 if none.
 
@@ -768,7 +773,7 @@ def _first_event(state, integ, work, t, hs, tap_start, in_tap, muted):
     return s_best, jb, kb
 
 
-@njit
+@njit_inline
 def _take_step(y, v, dy, dv, W, tangent):
     """Copy the RK4 end state (W rows W_Y1, W_V1, W_DY1, W_DV1) into y, v (and dy, dv)."""
     for i in range(y.size):
@@ -779,7 +784,7 @@ def _take_step(y, v, dy, dv, W, tangent):
             dv[i] = W[W_DV1, i]
 
 
-@njit
+@njit_inline
 def _unchanged_modes(W, modes):
     """True if the modes equal those saved in W row W_YS before the event."""
     for i in range(modes.size):
