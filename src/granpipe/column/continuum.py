@@ -77,6 +77,7 @@ import math
 import numpy as np
 
 from .._jit import njit
+from .discrete import rk4_combine, rk4_stage
 from .model import ColumnParams
 
 __all__ = [
@@ -382,27 +383,24 @@ def _lw_run(
             _lw_accel(Y, V, dz, G, e, w_sigma, a0, hybrid, at, phi, l, d, u, b, k1)
             th = t + 0.5 * hs
             at = np.interp(th, top_t, top_a) if hybrid else 0.0
-            for j in range(n):
-                Ys[j] = Y[j] + 0.5 * hs * V[j]
-                v1[j] = V[j] + 0.5 * hs * k1[j]
+            rk4_stage(Y, V, 0.5 * hs, Ys)
+            rk4_stage(V, k1, 0.5 * hs, v1)
             a0 = _lw_set_ends(th, Ys, v1, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
             _lw_accel(Ys, v1, dz, G, e, w_sigma, a0, hybrid, at, phi, l, d, u, b, k2)
-            for j in range(n):
-                Ys[j] = Y[j] + 0.5 * hs * v1[j]
-                v2[j] = V[j] + 0.5 * hs * k2[j]
+            rk4_stage(Y, v1, 0.5 * hs, Ys)
+            rk4_stage(V, k2, 0.5 * hs, v2)
             a0 = _lw_set_ends(th, Ys, v2, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
             _lw_accel(Ys, v2, dz, G, e, w_sigma, a0, hybrid, at, phi, l, d, u, b, k3)
-            for j in range(n):
-                Ys[j] = Y[j] + hs * v2[j]
-                v3[j] = V[j] + hs * k3[j]
+            rk4_stage(Y, v2, hs, Ys)
+            rk4_stage(V, k3, hs, v3)
             t1 = t + hs
             at = np.interp(t1, top_t, top_a) if hybrid else 0.0
             a0 = _lw_set_ends(t1, Ys, v3, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
             _lw_accel(Ys, v3, dz, G, e, w_sigma, a0, hybrid, at, phi, l, d, u, b, k4)
+            rk4_combine(Y, V, v1, v2, v3, hs, Y)
+            rk4_combine(V, k1, k2, k3, k4, hs, V)
             bad = False
             for j in range(n):
-                Y[j] += hs / 6.0 * (V[j] + 2.0 * v1[j] + 2.0 * v2[j] + v3[j])
-                V[j] += hs / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
                 if not (math.isfinite(Y[j]) and abs(V[j]) < 1e3 * vmax0):
                     bad = True
             t = t1
@@ -938,29 +936,26 @@ def _bsr_run(
                             top_t, top_y, top_v)  # fmt: skip
             _bsr_accel(Y, V, yg, vg, W, ds, G, e, w_sigma, first_pinned, k1)
             th = t + 0.5 * hs
-            for i in range(M):
-                Ys[i] = Y[i] + 0.5 * hs * V[i]
-                v1[i] = V[i] + 0.5 * hs * k1[i]
+            rk4_stage(Y, V, 0.5 * hs, Ys)
+            rk4_stage(V, k1, 0.5 * hs, v1)
             _bsr_set_bounds(th, Ys, v1, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
                             top_t, top_y, top_v)  # fmt: skip
             _bsr_accel(Ys, v1, yg, vg, W, ds, G, e, w_sigma, first_pinned, k2)
-            for i in range(M):
-                Ys[i] = Y[i] + 0.5 * hs * v1[i]
-                v2[i] = V[i] + 0.5 * hs * k2[i]
+            rk4_stage(Y, v1, 0.5 * hs, Ys)
+            rk4_stage(V, k2, 0.5 * hs, v2)
             _bsr_set_bounds(th, Ys, v2, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
                             top_t, top_y, top_v)  # fmt: skip
             _bsr_accel(Ys, v2, yg, vg, W, ds, G, e, w_sigma, first_pinned, k3)
-            for i in range(M):
-                Ys[i] = Y[i] + hs * v2[i]
-                v3[i] = V[i] + hs * k3[i]
+            rk4_stage(Y, v2, hs, Ys)
+            rk4_stage(V, k3, hs, v3)
             t1 = t + hs
             _bsr_set_bounds(t1, Ys, v3, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
                             top_t, top_y, top_v)  # fmt: skip
             _bsr_accel(Ys, v3, yg, vg, W, ds, G, e, w_sigma, first_pinned, k4)
+            rk4_combine(Y, V, v1, v2, v3, hs, Y)
+            rk4_combine(V, k1, k2, k3, k4, hs, V)
             bad = False
             for i in range(M):
-                Y[i] += hs / 6.0 * (V[i] + 2.0 * v1[i] + 2.0 * v2[i] + v3[i])
-                V[i] += hs / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
                 if not (math.isfinite(Y[i]) and abs(V[i]) < 1e3 * vmax0):
                     bad = True
             t = t1
