@@ -300,7 +300,7 @@ def convection_after(s_j: np.ndarray, n_periods: int) -> float:
 
 
 def rolls_after(contrast: np.ndarray, n_periods: int) -> float:
-    """The roll criterion's t (:func:`~granpipe.box.measures.roll_significance`) over the
+    """The roll score (:func:`~granpipe.box.measures.roll_significance`) over the
     first ``n_periods`` periods of each replica, averaged over the replicas as the point's
     is; NaN when the record is shorter.
 
