@@ -434,6 +434,16 @@ class SlipResult:
         return int(np.isfinite(self.per_period).sum())
 
 
+def slip_options(slips: Mapping) -> dict:
+    """:func:`slip_flags` keywords from the ``box.slips`` config section."""
+    return {
+        "threshold": float(slips["displacement"]),
+        "min_count": int(slips["min_neighbours"]),
+        "r_max": float(slips["neighbour_cutoff"]),
+        "bulk_depth": float(slips["surface_depth"]),
+    }
+
+
 def slip_probability(positions: np.ndarray, **kwargs) -> SlipResult:
     """p_s: fraction of bulk particles slipping per period, averaged over periods.
 
@@ -660,12 +670,7 @@ def _replica_measures(run: ReplicaRun, detection, slips, order, lx, amp_omega):
     s_c, s_j = convection_measure(run.z_tracers[:, 0, :])
     s_b, s_k = bouncing_measure(run.z_tracers, run.z_plate)
     frac, _ = detachment_fraction(run.bed_gap, tol=float(detection["detachment_gap"]))
-    slip_kw = {
-        "threshold": float(slips["displacement"]),
-        "min_count": int(slips["min_neighbours"]),
-        "r_max": float(slips["neighbour_cutoff"]),
-        "bulk_depth": float(slips["surface_depth"]),
-    }
+    slip_kw = slip_options(slips)
     phase_slips = [slip_probability(run.frames, **slip_kw)] + [
         slip_probability(run.phase_frames[:, m], **slip_kw) for m in range(run.n_s - 1)
     ]
@@ -1007,11 +1012,7 @@ def convergence(
     _, s_j = convection_measure(z_tracers[:, 0, :])
     tg = np.asarray(T_g).mean(axis=1)
     sl = slip_probability(
-        np.asarray(frames[: P.max() + 1], dtype=np.float64),
-        threshold=float(slips["displacement"]),
-        min_count=int(slips["min_neighbours"]),
-        r_max=float(slips["neighbour_cutoff"]),
-        bulk_depth=float(slips["surface_depth"]),
+        np.asarray(frames[: P.max() + 1], dtype=np.float64), **slip_options(slips)
     )
     out = {"P": P, "s_c": [], "s_b": [], "T_g": [], "p_s": []}
     for p in P:
