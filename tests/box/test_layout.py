@@ -48,6 +48,37 @@ def test_run_files_cover_points_replicas_and_parts():
     assert [list(layout.part_periods(sec, p)) for p in range(3)] == [[0, 1], [2, 3], [4]]
 
 
+def test_grid_blocks_add_points_and_replicas_and_leave_the_grids_files_alone():
+    sec = copy.deepcopy(SECTION)
+    before = layout.run_files(sec)
+    hashes = {pt: layout.ensemble_params(sec, layout.point_name(*pt)) for pt in layout.points(sec)}
+    g0 = float(sec["grid"]["Gamma"][0])
+    # one grid point again with 3 replicas, a new Γ of one start, a new N_l
+    sec["grid"]["blocks"] = [
+        {"N_l": [5], "Gamma": [g0, 2.55], "inits": ["crystal"], "replicas": 3},
+        {"N_l": [7], "Gamma": [g0]},
+    ]
+    pts = layout.points(sec)
+    assert len(pts) == len(set(pts)) == len(hashes) + 1 + 2
+    assert (5, 2.55, "crystal", W6) in pts and (5, 2.55, "random", W6) not in pts
+    files = layout.run_files(sec)
+    assert set(before) <= set(files)
+    assert len(files) == len(before) + (2 + 3 + 2) * layout.n_parts(sec)
+    assert list(layout.replicas(sec, 5, g0, "crystal")) == [0, 1, 2]
+    assert list(layout.replicas(sec, 5, g0, "random")) == [0]
+    assert list(layout.replicas(sec, 7, g0, "random")) == [0]
+    # the prepared states: three crystal replicas for N_l 5, one of each start for N_l 7
+    states = layout.init_files(sec)
+    assert len(states) == 3 + 1 + 2 == len(set(states))
+    # an untouched point keeps its ensemble subset; a point with more replicas reduces them
+    for pt, params in hashes.items():
+        now = layout.ensemble_params(sec, layout.point_name(*pt))
+        if pt[1:3] == (g0, "crystal"):
+            assert now["replicas"] == 3 != params["replicas"]
+        else:
+            assert now == params
+
+
 def test_growing_measured_periods_by_whole_parts_keeps_earlier_part_params():
     sec = copy.deepcopy(SECTION)
     sec["protocol"]["measured_periods"] = 4

@@ -49,6 +49,7 @@ __all__ = [
     "parse_point",
     "init_states",
     "wall_frictions",
+    "grid_blocks",
     "points",
     "n_parts",
     "part_periods",
@@ -107,9 +108,11 @@ def check(section: Mapping) -> None:
 
     grid = section.get("grid", {})
     n_ls = [int(n) for n in grid.get("N_l", [])]
+    n_ls += [int(n) for b in grid.get("blocks", ()) for n in b.get("N_l", ()) if n not in n_ls]
     want = section.get("fits", {}).get("N_l")
     if want is not None and int(want) not in n_ls:
-        raise ConfigError(f"config key 'box.fits.N_l' = {want} is not in 'box.grid.N_l' = {n_ls}")
+        raise ConfigError(f"config key 'box.fits.N_l' = {want} is not in 'box.grid.N_l' "
+                          f"or its blocks' = {n_ls}")  # fmt: skip
     pr = section.get("protocol", {})
     ramp, transient = pr.get("ramp_periods", 0.0), pr.get("transient_periods", 0)
     if ramp > transient:
@@ -120,11 +123,13 @@ def check(section: Mapping) -> None:
     from ..config import check_memory, check_plan
     from .preparation import crystal_row_lengths
 
-    # the points counted, not listed (as :func:`points` would): a grid too large to plan
-    # is never built
-    n_points = len(wall_settings(section)) * len(grid["N_l"]) * len(grid["inits"])
-    n_points *= len(grid["Gamma"])
-    jobs = n_points * len(replicas(section)) * (n_parts(section) + 1)
+    # the point-replicas counted per block, not listed (as :func:`points` would): a grid
+    # too large to plan is never built
+    runs = sum(
+        len(b["N_l"]) * len(b["inits"]) * len(b["Gamma"]) * int(b["replicas"])
+        for b in grid_blocks(section)
+    )
+    jobs = len(wall_settings(section)) * runs * (n_parts(section) + 1)
     check_plan("box.grid", jobs, "raise 'box.protocol.periods_per_part' or shrink the grid")
     if n_parts(section) > 1000:  # the rules' three-digit part pattern
         raise ConfigError(
@@ -340,30 +345,49 @@ def preparation_physics(physics: Mapping) -> dict:
     return {k: v for k, v in physics.items() if k != "side_walls"}
 
 
+def grid_blocks(section: Mapping) -> list[dict]:
+    """The grid's products of ``N_l`` × ``inits`` × ``Gamma``, each with its replica count:
+    ``grid`` itself first, then each of ``grid.blocks`` with the grid's ``inits`` and
+    ``replicas`` where it leaves them out (e.g. more replicas of one start where a barrier
+    is decided)."""
+    grid = section["grid"]
+    base = {k: grid[k] for k in ("N_l", "Gamma", "inits", "replicas")}
+    return [base] + [{**base, **dict(b)} for b in grid.get("blocks", ())]
+
+
+def _block_points(section: Mapping) -> dict[tuple[int, float, str], int]:
+    """``(N_l, Gamma, init)`` -> its replicas (the largest of the blocks holding it), in
+    config order."""
+    out: dict[tuple[int, float, str], int] = {}
+    for b in grid_blocks(section):
+        for n_l in b["N_l"]:
+            for init in b["inits"]:
+                for g in b["Gamma"]:
+                    key = (int(n_l), float(g), init)
+                    out[key] = max(out.get(key, 0), int(b["replicas"]))
+    return out
+
+
 def init_states(section: Mapping) -> list[tuple[int, str, Walls]]:
     """``(N_l, init, walls)`` of the grid's prepared states (one per shared state: the
     first wall setting of each ``(mu_w, wall_torque)``), in config order."""
     seen, out = set(), []
     for walls in wall_settings(section):
-        for n_l in section["grid"]["N_l"]:
-            for init in section["grid"]["inits"]:
-                key = state_name(n_l, init, walls)
-                if key not in seen:
-                    seen.add(key)
-                    out.append((int(n_l), init, walls))
+        for n_l, _, init in _block_points(section):
+            key = state_name(n_l, init, walls)
+            if key not in seen:
+                seen.add(key)
+                out.append((int(n_l), init, walls))
     return out
 
 
 def points(section: Mapping) -> list[tuple[int, float, str, Walls]]:
-    """``(N_l, Gamma, init, walls)`` of every parameter point the grid asks for, in config
-    order."""
-    grid = section["grid"]
+    """``(N_l, Gamma, init, walls)`` of every parameter point the grid and its blocks ask
+    for, in config order (a point in several blocks once)."""
     return [
-        (int(n_l), float(g), init, walls)
+        (n_l, g, init, walls)
         for walls in wall_settings(section)
-        for n_l in grid["N_l"]
-        for init in grid["inits"]
-        for g in grid["Gamma"]
+        for n_l, g, init in _block_points(section)
     ]
 
 
@@ -382,8 +406,17 @@ def part_periods(section: Mapping, part: int) -> range:
     return range(part * p, min(m, (part + 1) * p))
 
 
-def replicas(section: Mapping) -> range:
-    return range(int(section["grid"]["replicas"]))
+def replicas(section: Mapping, n_l: int | None = None, gamma: float | None = None,
+             init: str | None = None) -> range:
+    """Replicas of the point ``(n_l, gamma, init)`` (the largest count of the blocks
+    holding it); of the prepared state ``(n_l, init)`` when ``gamma`` is None (the most
+    any of its points needs); of the whole grid when all are None."""
+    counts = [
+        r for (n, g, i), r in _block_points(section).items()
+        if (n_l is None or n == int(n_l)) and (init is None or i == init)
+        and (gamma is None or g == float(gamma))
+    ]  # fmt: skip
+    return range(max(counts, default=0))
 
 
 def init_file(n_l: int, init: str, walls: Walls, replica: int) -> str:
@@ -401,7 +434,9 @@ def ensemble_file(n_l: int, gamma: float, init: str, walls: Walls) -> str:
 
 def init_files(section: Mapping) -> list[str]:
     """Prepared initial states (relative to ``results/<scale>/box/``)."""
-    return [init_file(*s, r) for s in init_states(section) for r in replicas(section)]
+    return [
+        init_file(*s, r) for s in init_states(section) for r in replicas(section, s[0], init=s[1])
+    ]
 
 
 def run_files(section: Mapping) -> list[str]:
@@ -413,7 +448,7 @@ def point_run_files(section: Mapping, n_l: int, gamma: float, init: str, walls: 
     """The run files of one point (all replicas, all parts)."""
     return [
         run_file(n_l, gamma, init, walls, r, p)
-        for r in replicas(section)
+        for r in replicas(section, n_l, gamma, init)
         for p in range(n_parts(section))
     ]
 
@@ -504,10 +539,10 @@ def ensemble_params(section: Mapping, point: str | None = None) -> dict:
         "order": dict(section["order"]),
     }
     if point is not None:
-        walls = parse_point(point)[3]
+        n_l, gamma, init, walls = parse_point(point)
         out.update(
             point=point,
-            replicas=int(section["grid"]["replicas"]),
+            replicas=len(replicas(section, n_l, gamma, init)),
             runs_config_hashes=[
                 config_hash(runs_params(section, part, walls)) for part in range(n_parts(section))
             ],
