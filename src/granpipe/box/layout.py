@@ -406,8 +406,9 @@ def part_periods(section: Mapping, part: int) -> range:
     return range(part * p, min(m, (part + 1) * p))
 
 
-def replicas(section: Mapping, n_l: int | None = None, gamma: float | None = None,
-             init: str | None = None) -> range:
+def replicas(
+    section: Mapping, n_l: int | None = None, gamma: float | None = None, init: str | None = None
+) -> range:
     """Replicas of the point ``(n_l, gamma, init)`` (the largest count of the blocks
     holding it); of the prepared state ``(n_l, init)`` when ``gamma`` is None (the most
     any of its points needs); of the whole grid when all are None."""
