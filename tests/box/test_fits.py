@@ -267,6 +267,48 @@ def test_both_readings_of_the_barrier_fit_are_given():
         assert weighted.E_b_ci[0] <= 7.0 <= weighted.E_b_ci[1]
 
 
+def test_each_replica_as_a_point_of_the_barrier_fit():
+    """Three replicas per point whose p_s scatter by a factor e^{±0.5} about a barrier of
+    7: pooled, one point per Γ (the mean of its replicas); each, three points per Γ, the
+    least-squares line through every replica's ln p_s. Both intervals cover 7."""
+    from granpipe.analysis import regression
+
+    rng = np.random.default_rng(3)
+    table = _table(3)
+    trials = table["n_trials"].to_numpy()
+    p_rep = [
+        0.5 * np.exp(-7.0 / k + 0.5 * rng.standard_normal(3)) if init == "random" else np.full(3, p)
+        for k, init, p in zip(table["K_m"], table["init"], table["p_s"], strict=True)
+    ]  # fmt: skip
+    slips = [rng.binomial(n, p) for n, p in zip(trials, p_rep, strict=True)]
+    table = table.assign(
+        replicas=3,
+        p_s_replica=[tuple(k / n) for k, n in zip(slips, trials, strict=True)],
+        p_s_sem_replica=[(np.nan,) * 3] * len(table),
+        n_slips_replica=[tuple(k) for k in slips],
+        n_trials_replica=[(n,) * 3 for n in trials],
+        p_s=[k.sum() / (3 * n) for k, n in zip(slips, trials, strict=True)],
+        n_slips=[k.sum() for k in slips],
+        n_trials=3 * trials,
+    )  # fmt: skip
+    key = ("random", 40, Walls(0.6, "shaken", "lever"))
+    g = table[(table["init"] == "random") & (table["N_l"] == 40)]
+    K = np.repeat(g["K_m"].to_numpy(), 3)
+    p = np.concatenate([np.asarray(v) for v in g["p_s_replica"]])
+    line = regression.arrhenius_fit(K, p_s=p, n_trials=np.full(len(K), 1.0e9), level=0.95)
+    out = {}
+    for each in fits.SLIP_REPLICAS:
+        cfg = {**FITS, "slip_weights": "unweighted", "slip_replicas": each}
+        out[each] = fits.slip_fits(table, fits.temperature_fits(table, cfg, DETECTION), cfg)[key]
+        fit = out[each]["all"]
+        assert fit.E_b_ci[0] <= 7.0 <= fit.E_b_ci[1], (each, fit)
+    assert out["each"]["all"].n_points == (p > 0).sum() > 2.5 * out["pooled"]["all"].n_points
+    assert out["each"]["all"].E_b == pytest.approx(line.E_b, rel=1e-12)
+    assert out["pooled"]["all"].E_b != pytest.approx(line.E_b, rel=1e-6)
+    with pytest.raises(ValueError, match="slip_replicas"):
+        fits.slip_fits(table, {}, {**FITS, "slip_replicas": "median"})
+
+
 def test_wall_settings_are_separate_groups():
     a, b = _table(6, mu_w=0.6), _table(7, mu_w=0.0)
     c = _table(8, mu_w=0.6, side_walls="still")

@@ -281,8 +281,25 @@ def phase_slip_columns(ds: xr.Dataset) -> dict:
     m = int(np.argmax(ds["flight_phase"].values))
     for c in _FLIGHT:
         out[f"{c}_flight"] = float(ds[f"{c}_phase"].values[m])
+        out[f"{c}_replica_flight"] = _replica_values(ds, f"{c}_phase_replica", c, m)
     out["flight_phase"] = float(ds["slip_phase"].values[m])
     return out
+
+
+_REPLICA_SUFFIXES = ("_replica", "_replica_flight")
+"""Suffixes of the points table's per-replica columns (a tuple per point)."""
+
+
+def _replica_values(ds: xr.Dataset, name: str, pooled: str, phase: int | None = None) -> tuple:
+    """A point's per-replica values of ``name`` (at slip phase ``phase``), or with one
+    replica and no such variable (files written before it) the pooled ``pooled``."""
+    if name in ds:
+        v = ds[name].values
+        return tuple(float(x) for x in (v if phase is None else v[:, phase]))
+    if int(ds.attrs["replicas"]) == 1:
+        src = ds[pooled] if phase is None else ds[f"{pooled}_phase"][phase]
+        return (float(src.values),)
+    raise KeyError(f"{ds.attrs.get('point', '?')}: no {name} for its replicas")
 
 
 def convection_after(s_j: np.ndarray, n_periods: int) -> float:
@@ -361,6 +378,8 @@ def points_table(
         }
         for c in _COLUMNS:
             row[c] = float(ds[c].values)
+        for c in _FLIGHT:
+            row[f"{c}_replica"] = _replica_values(ds, f"{c}_replica", c)
         for n in records:
             row[f"s_c_{int(n)}"] = convection_after(ds["s_j"].values, int(n))
             row[f"roll_{int(n)}"] = rolls_after(ds["roll_contrast"].values, int(n))
@@ -559,25 +578,43 @@ state no weights), or weighted by each point's error (the scatter over periods, 
 counts). The other reading's rows carry the suffix ``_weighted`` / ``_unweighted``."""
 
 
+SLIP_REPLICAS = ("pooled", "each")
+"""What one point of the Arrhenius fit is (``fits.slip_replicas``): a parameter point, its
+p_s pooled over its replicas (the residual scatter about the line holds the replicas'
+spread through the scatter of the point means), or each replica of each point (the spread
+enters the residuals directly; a replica without a slip is left out of the line, as a
+point without one is, so where slips are rare this reading leans high)."""
+
+
+def _slip_data(g: pd.DataFrame, each: bool) -> tuple[np.ndarray, dict]:
+    """K_m and the slip columns of :data:`_FLIGHT` of a group's points: (n,) per point,
+    or per replica of each point (``each``, from the ``<column>_replica`` columns)."""
+    if not each:
+        return g["K_m"].to_numpy(), {c: g[c].to_numpy(dtype=float) for c in _FLIGHT}
+    n = g["p_s_replica"].map(len).to_numpy()
+    cols = {c: np.concatenate([np.asarray(v, dtype=float) for v in g[f"{c}_replica"]])
+            for c in _FLIGHT}  # fmt: skip
+    return np.repeat(g["K_m"].to_numpy(), n), cols
+
+
 def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
     """Arrhenius fits per group: {(init, N_l, walls): {region: ArrheniusFit}} incl. "all",
     in the reading of ``fits.slip_weights`` (:data:`SLIP_WEIGHTS`) and, under
-    ``<region>_<other reading>``, the other."""
+    ``<region>_<other reading>``, the other; the fitted points are those of
+    ``fits.slip_replicas`` (:data:`SLIP_REPLICAS`)."""
     level = float(fits_cfg["confidence"])
     main = str(fits_cfg.get("slip_weights", "unweighted"))
     if main not in SLIP_WEIGHTS:
         raise ValueError(f"slip_weights must be one of {SLIP_WEIGHTS}, not {main!r}")
     other = SLIP_WEIGHTS[1 - SLIP_WEIGHTS.index(main)]
+    each = str(fits_cfg.get("slip_replicas", "pooled"))
+    if each not in SLIP_REPLICAS:
+        raise ValueError(f"slip_replicas must be one of {SLIP_REPLICAS}, not {each!r}")
     out = {}
     for init, n_l, walls, g in _groups(table):
-        kw = {
-            "p_s": g["p_s"].to_numpy(),
-            "n_slips": g["n_slips"].to_numpy(),
-            "n_trials": g["n_trials"].to_numpy(),
-            "p_s_sem": g["p_s_sem"].to_numpy(),
-        }
+        K, kw = _slip_data(g, each == "each")
         keep = np.isfinite(kw["p_s"]) & (kw["n_trials"] > 0)
-        K = g["K_m"].to_numpy()[keep]
+        K = K[keep]
         kw = {k: v[keep] for k, v in kw.items()}
         sem = kw.pop("p_s_sem")
         # the scatter over periods is the honest error where slips happened; counts otherwise
@@ -608,8 +645,10 @@ def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
             fits.update({f"{r}{suffix}": f for r, f in by.items()})
         out[(init, n_l, walls)] = fits
     if "p_s_flight" in table.columns:  # the same fits with slips sampled in flight
-        flight = table.assign(**{c: table[f"{c}_flight"] for c in _FLIGHT})
-        flight = flight.drop(columns=[f"{c}_flight" for c in _FLIGHT])
+        names = [f"{c}{r}" for c in _FLIGHT for r in ("", "_replica")
+                 if f"{c}{r}_flight" in table.columns]  # fmt: skip
+        flight = table.assign(**{c: table[f"{c}_flight"] for c in names})
+        flight = flight.drop(columns=[f"{c}_flight" for c in names])
         for key, fl in slip_fits(flight, tfits, fits_cfg).items():
             out.setdefault(key, {}).update({f"{r}_flight": f for r, f in fl.items()})
     return out
@@ -741,7 +780,8 @@ def fits_datasets(
         {
             c: ("point", table[c].to_numpy(dtype=float), lab("1", c))
             for c in table.columns
-            if c not in ("point", *_TEXT_COLUMNS)
+            # the per-replica slip columns stay in the ensemble files
+            if c not in ("point", *_TEXT_COLUMNS) and not c.endswith(_REPLICA_SUFFIXES)
         },
         coords={
             "point": ("point", table["point"].to_numpy(dtype=str), lab("1", "parameter point")),

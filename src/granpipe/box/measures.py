@@ -703,8 +703,9 @@ def slip_phases(run: ReplicaRun) -> list[int]:
 
 
 def _phase_slip_vars(phase_slips: Sequence[Sequence[SlipResult]], flight) -> dict:
-    """p_s at each slip phase (``slip_phase``), all replicas pooled as the point's p_s is,
-    and how often the bed is off the plate at that phase.
+    """p_s at each slip phase (``slip_phase``), all replicas pooled as the point's p_s is
+    and per replica (``<name>_replica``), and how often the bed is off the plate at that
+    phase.
 
     Parameters
     ----------
@@ -717,8 +718,18 @@ def _phase_slip_vars(phase_slips: Sequence[Sequence[SlipResult]], flight) -> dic
         key: np.asarray([sum(getattr(rep[m], key) for rep in phase_slips) for m in range(n_s)])
         for key in ("n_slips", "n_trials")
     }
-    dims = ("slip_phase",)
+    dims, rdims = ("slip_phase",), ("replica", "slip_phase")
+    replica = {
+        "p_s": [[r.p_s for r in rep] for rep in phase_slips],
+        "p_s_sem": [[r.sem for r in rep] for rep in phase_slips],
+        "n_slips": [[r.n_slips for r in rep] for rep in phase_slips],
+        "n_trials": [[r.n_trials for r in rep] for rep in phase_slips],
+    }
     return {
+        **{
+            f"{key}_phase_replica": _var(rdims, np.asarray(v), "1", f"{key} at the phase")
+            for key, v in replica.items()
+        },
         "p_s_phase": _var(
             dims, np.asarray([_nanmean(v) for v in per]), "1", "slip probability at the phase"
         ),

@@ -436,9 +436,11 @@ def figure_reading(points, fits_cfg: Mapping, figure: int) -> str:
         return f"{record}; T_g* regions fitted over the {which} points (fits.temperature_points)"
     weights = fits_cfg.get("slip_weights", "unweighted")
     labels = fits_cfg.get("crystal_points", "initialisation")
+    each = fits_cfg.get("slip_replicas", "pooled")
     return (
         f"{record}; slips between cycle starts; Arrhenius fits {weights} "
-        f"(fits.slip_weights), crystal points by {labels} (fits.crystal_points)"
+        f"(fits.slip_weights) over replicas {each} (fits.slip_replicas), crystal points "
+        f"by {labels} (fits.crystal_points)"
     )
 
 
