@@ -414,6 +414,33 @@ def test_the_onset_per_record_length_is_a_criterion_of_its_own():
     assert not any(n.startswith("p_s_periods_50_200[") for n in names)
 
 
+def test_the_onset_against_the_record_names_each_reading_and_record():
+    """Fig. 7's table: every criterion convection / rolls over the first n periods and over
+    the whole record (200 here) is one row of its reading and record, the others none;
+    the figure draws from it."""
+    from granpipe.figures import box as figs
+
+    table = _table(11)
+    table["s_c_8"] = table["s_c"]
+    table["s_c_32"] = np.exp(2.0 * (table["Gamma"] - np.where(table["init"] == "random",
+                                                               1.5, 2.3)))  # fmt: skip
+    ths = fits.thresholds_table(table, DETECTION)
+    rec = figs.onset_records(ths, full_record=200)
+    assert set(zip(rec["reading"], rec["record"], strict=True)) == {
+        ("convection", 8),
+        ("convection", 32),
+        ("convection", 200),
+        ("rolls", 200),
+    }
+    assert len(rec) == 4 * 2 * 2  # per reading and record: 2 starts x 2 N_l
+    one = rec[(rec["init"] == "random") & (rec["N_l"] == 20)].set_index(["reading", "record"])
+    assert one.loc[("convection", 32), "Gamma"] == pytest.approx(1.5, abs=1e-9)
+    assert one.loc[("convection", 200), "Gamma"] == pytest.approx(1.9, abs=1e-9)
+    assert one.loc[("rolls", 200), "Gamma"] == pytest.approx(1.9 + 3.0 / 5.0, abs=1e-9)
+    fig = figs.fig7_onset_record(table, ths, 1.82, reading="synthetic")
+    assert len(fig.axes) == 4
+
+
 def test_the_roll_score_over_the_first_periods_of_each_replica():
     """rolls_after maps each replica's first n contrasts to its score and averages the
     replicas; a record shorter than asked gives NaN, and the table's roll_<n> columns

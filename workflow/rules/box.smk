@@ -187,6 +187,11 @@ if "box" in config:
                 category="box",
                 caption="../report/box_fig6.rst",
             ),
+            fig7=report(
+                out("box", "figures", "fig7_onset_record.png"),
+                category="box",
+                caption="../report/box_fig7.rst",
+            ),
             pdf=[out("box", f) for f in box_layout.figure_files("pdf")],
         params:
             json=lambda w: as_json(box_layout.figures_params(BOX)),

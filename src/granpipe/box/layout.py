@@ -471,9 +471,10 @@ FIGURES = {
     4: "fig4_granular_temperature",
     5: "fig5_slip_probability",
     6: "fig6_walls",
+    7: "fig7_onset_record",
 }
 """Figure number -> file stem (PNG and PDF of each); 6 (thresholds against the side walls'
-friction) is ours."""
+friction) and 7 (the convection onset against the record it looked at) are ours."""
 
 
 def fit_files() -> list[str]:

@@ -415,7 +415,7 @@ def fit_n_l(fits_cfg: Mapping, n_ls) -> int:
 
 
 def figure_reading(points, fits_cfg: Mapping, figure: int) -> str:
-    """The subtitle of Fig. 3, 4 or 5: the record its points hold and the readings of the
+    """The subtitle of Fig. 3, 4, 5 or 7: the record its points hold and the readings of the
     paper the criteria and fits take (``fits.*``; docs/box.md)."""
 
     def span(values) -> str:
@@ -430,6 +430,11 @@ def figure_reading(points, fits_cfg: Mapping, figure: int) -> str:
         return (
             f"{record}; convection by Eq. (B2) over the whole record (and over its first n "
             "cycles: convection_<n>periods), rolls by the wall-to-centre displacement score"
+        )
+    if figure == 7:
+        return (
+            f"{record}; onsets by Eq. (B2) and by the roll criterion over the first n "
+            "measured periods (fits.onset_records) and over the whole record"
         )
     if figure == 4:
         which = fits_cfg.get("temperature_points", "bouncing")
@@ -581,7 +586,7 @@ def figures_stage(
     out_dir: str | Path,
     log: Callable[[str], None] | None = log_to_stderr,
 ) -> list[Path]:
-    """Figures 1, 3, 4, 5 at one wall setting (:func:`figure_walls`) and Fig. 6, the
+    """Figures 1, 3, 4, 5 and 7 at one wall setting (:func:`figure_walls`) and Fig. 6, the
     thresholds against the walls (PNG and PDF)."""
     from ..figures import box as figs
     from ..figures import save_figure
@@ -660,6 +665,10 @@ def figures_stage(
         "paper: random-start convection, K_m ≈ 3.3": math.sqrt(PAPER["K_m_break_random"]),
     }
     written += save_figure(figs.fig6_walls(all_ths, paper_lines), Path(out_dir) / layout.FIGURES[6])
+    fig7 = figs.fig7_onset_record(
+        points, ths, math.sqrt(PAPER["K_m_break_random"]), reading=figure_reading(points, fcfg, 7)
+    )
+    written += save_figure(fig7, Path(out_dir) / layout.FIGURES[7])
     if log:
         log("figures: " + ", ".join(str(p) for p in written))
     return written

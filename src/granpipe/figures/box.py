@@ -11,6 +11,8 @@
   walls' Coulomb coefficient μ_w (one panel per N_l) when the grid has several, else
   against N_l; one line style per drive of the side walls and wall torque, the paper's
   thresholds as lines.
+* :func:`fig7_onset_record` — (ours) the convection onset against the record it is
+  measured over, by Eq. (B2) and by the roll criterion, and the roll score against Γ.
 
 Figures 3–5 draw one wall setting (the stage picks Table I's μ_w = 0.6 with the whole box
 shaken when the grid has it); crystal points whose crystal broke before measurement are
@@ -21,6 +23,8 @@ and snapshots (positions + order codes). :func:`save` writes PNG and PDF atomica
 """
 
 from __future__ import annotations
+
+import re
 
 import matplotlib
 
@@ -41,6 +45,8 @@ __all__ = [
     "fig4_granular_temperature",
     "fig5_slip_probability",
     "fig6_walls",
+    "fig7_onset_record",
+    "onset_records",
     "segmented_curve",
 ]
 
@@ -410,4 +416,83 @@ def fig6_walls(thresholds: pd.DataFrame, paper: dict | None = None):
     handles, labels = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, labels, fontsize=6, loc="outside right upper",
                title="thresholds (arrows:\nbeyond the grid)", title_fontsize=7)  # fmt: skip
+    return fig
+
+
+_RECORD_CRITERION = re.compile(r"^(convection|rolls)(?:_(\d+)periods)?$")
+
+
+def onset_records(thresholds: pd.DataFrame, full_record: int) -> pd.DataFrame:
+    """The convection onsets of :func:`fig7_onset_record` as a table: the rows of the
+    criteria ``convection`` / ``rolls`` (the whole record, ``full_record`` periods) and
+    ``convection_<n>periods`` / ``rolls_<n>periods`` (its first n periods), with columns
+    ``reading`` (``convection`` = Eq. (B2), ``rolls``) and ``record`` [periods]."""
+    rows = []
+    for _, r in thresholds.iterrows():
+        m = _RECORD_CRITERION.match(str(r["criterion"]))
+        if m:
+            n = int(m.group(2)) if m.group(2) else int(full_record)
+            rows.append({**r.to_dict(), "reading": m.group(1), "record": n})
+    out = pd.DataFrame(rows, columns=[*thresholds.columns, "reading", "record"])
+    # the whole record also named by its length: keep one row per (group, reading, record)
+    keys = ["init", "N_l", "reading", "record"]
+    return out.drop_duplicates(keys, keep="last").sort_values(keys, kind="stable")
+
+
+def fig7_onset_record(
+    points: pd.DataFrame, thresholds: pd.DataFrame, paper_gamma: float | None = None,
+    reading: str | None = None,
+):  # fmt: skip
+    """(ours) How long the convection onset looked: the onset in Γ against the record it
+    is measured over (top: Eq. (B2)'s s_c and the roll criterion, one line per N_l and
+    start), and the roll score against Γ over the whole record (bottom, its threshold
+    dotted).
+
+    Parameters
+    ----------
+    points : DataFrame with N_l, Gamma, init, roll_significance, measured_periods
+    thresholds : DataFrame, rows of :func:`granpipe.box.fits.thresholds_table`
+    paper_gamma : float, optional, the paper's random-start onset (√3.3 = 1.82)
+    reading : str, optional, drawn over the figure
+
+    A threshold beyond the grid is drawn at the grid's end with an arrow; error bars are
+    the bracketing grid points.
+    """
+    full = int(points["measured_periods"].min())
+    table = onset_records(thresholds, full)
+    inits = [i for i in ("random", "crystal") if i in set(points["init"])]
+    fig, axes = plt.subplots(2, len(inits), figsize=(4.4 * len(inits) + 2.0, 6.6),
+                             layout="constrained", squeeze=False)  # fmt: skip
+    _reading(fig, reading)
+    colors = _nl_colors(points["N_l"])
+    styles = {"convection": ("-", "s"), "rolls": ("--", "D")}
+    for j, init in enumerate(inits):
+        top, bottom = axes[0][j], axes[1][j]
+        for (n_l, rd), g in table[table["init"] == init].groupby(["N_l", "reading"]):
+            ls, mk = styles[rd]
+            x = g["record"].to_numpy(float) * (1.0 + 0.04 * (rd == "rolls"))
+            y, lo, hi = (g[c].to_numpy(float) for c in ("Gamma", "Gamma_low", "Gamma_high"))
+            ok = np.isfinite(y)
+            label = f"N_l = {int(n_l)}, " + ("Eq. (B2)" if rd == "convection" else "rolls")
+            top.errorbar(x[ok], y[ok], yerr=[y[ok] - lo[ok], hi[ok] - y[ok]], fmt=mk, ls=ls,
+                         color=colors[int(n_l)], ms=5, capsize=3, lw=1, label=label)  # fmt: skip
+            _beyond_grid(top, x, lo, hi, g["status"], mk, colors[int(n_l)], "full", ms=5,
+                         step=0.15)  # fmt: skip
+        if paper_gamma is not None and init == "random":
+            top.axhline(paper_gamma, color="0.4", lw=0.8, ls=":", label="paper (K_m ≈ 3.3)")
+        top.set_xscale("log")
+        top.set_xlabel("record [measured periods]")
+        top.set_ylabel(r"convection onset $\Gamma$")
+        top.set_title(f"{init} start", fontsize=9)
+        top.legend(fontsize=6)
+        for n_l, g in points[points["init"] == init].groupby("N_l"):
+            g = g.sort_values("Gamma")
+            bottom.plot(g["Gamma"], g["roll_significance"], "o-", ms=3, lw=1,
+                        color=colors[int(n_l)], label=f"N_l = {int(n_l)}")  # fmt: skip
+        rolls = table[table["reading"] == "rolls"]["level"].dropna()
+        if len(rolls):
+            bottom.axhline(float(rolls.iloc[0]), color="0.4", lw=0.8, ls=":")
+        bottom.set_xlabel(r"$\Gamma$")
+        bottom.set_ylabel(f"roll score over {full} periods")
+        bottom.legend(fontsize=6)
     return fig
