@@ -441,14 +441,28 @@ def test_the_onset_against_the_record_names_each_reading_and_record():
     assert len(fig.axes) == 4
 
 
+def test_the_combined_roll_score_of_beds_without_rolls_is_standard_normal():
+    """Points of 1, 3 and 9 replicas of diffusing beds (c_j independent, mean zero): the
+    combined score has spread 1 at every replica count (the replicas' mean would have
+    1/√n), so the threshold of 3 means the same with replicas; a roll still scores
+    higher with more of them."""
+    rng = np.random.default_rng(5)
+    for n in (1, 3, 9):
+        z = [fits.rolls_after(rng.normal(0.0, 0.02, (n, 32)), 32) for _ in range(600)]
+        assert np.std(z) == pytest.approx(1.0, abs=0.1), n
+        assert abs(np.mean(z)) < 0.15
+    assert measures.combined_score([2.0, 2.0, 2.0, np.nan]) == pytest.approx(2.0 * math.sqrt(3))
+    assert math.isnan(measures.combined_score([np.nan]))
+
+
 def test_the_roll_score_over_the_first_periods_of_each_replica():
-    """rolls_after maps each replica's first n contrasts to its score and averages the
-    replicas; a record shorter than asked gives NaN, and the table's roll_<n> columns
-    become criteria rolls_<n>periods."""
+    """rolls_after maps each replica's first n contrasts to its score and combines the
+    replicas' scores (Σ z / √n); a record shorter than asked gives NaN, and the table's
+    roll_<n> columns become criteria rolls_<n>periods."""
     rng = np.random.default_rng(2)
     c = np.vstack([0.05 + rng.normal(0.0, 0.01, 40), rng.normal(0.0, 0.01, 40)])
     scores = [measures.roll_significance(row, 32) for row in c]
-    assert fits.rolls_after(c, 32) == pytest.approx(np.mean(scores))
+    assert fits.rolls_after(c, 32) == pytest.approx(np.sum(scores) / math.sqrt(2))
     assert scores[0] > 10.0 > 3.0 > scores[1]
     assert math.isnan(fits.rolls_after(c, 41))
     table = _table(3).assign(roll_8=lambda t: 5.0 * (t["Gamma"] - 2.3))

@@ -52,7 +52,7 @@ from ..analysis import regression
 from ..analysis.summary import summary_row
 from ..io import read_dataset
 from .layout import Walls
-from .measures import roll_significance
+from .measures import combined_score, roll_significance
 
 __all__ = [
     "points_table",
@@ -318,8 +318,9 @@ def convection_after(s_j: np.ndarray, n_periods: int) -> float:
 
 def rolls_after(contrast: np.ndarray, n_periods: int) -> float:
     """The roll score (:func:`~granpipe.box.measures.roll_significance`) over the
-    first ``n_periods`` periods of each replica, averaged over the replicas as the point's
-    is; NaN when the record is shorter.
+    first ``n_periods`` periods of each replica, the replicas' scores combined as the
+    point's are (:func:`~granpipe.box.measures.combined_score`); NaN when the record is
+    shorter.
 
     Parameters
     ----------
@@ -329,7 +330,7 @@ def rolls_after(contrast: np.ndarray, n_periods: int) -> float:
     c = np.atleast_2d(np.asarray(contrast, dtype=np.float64))
     if n_periods > c.shape[1]:
         return math.nan
-    return float(np.nanmean([roll_significance(row, n_periods) for row in c]))
+    return combined_score([roll_significance(row, n_periods) for row in c])
 
 
 def slips_between(p_s_period: np.ndarray, first: int, last: int) -> float:

@@ -275,6 +275,16 @@ def roll_significance(contrast: np.ndarray, n_periods: int | None = None) -> flo
     return float(stats.norm.isf(stats.t.sf(c.mean() / se, c.size - 1)))
 
 
+def combined_score(scores: Sequence[float]) -> float:
+    """The roll score of a point from its replicas' (:func:`roll_significance`): Stouffer's
+    Σ z_r / √n over the finite ones, which stays a standard normal variable for beds
+    without rolls whatever the replica count (the mean of n scores would have spread
+    1/√n, so that a fixed threshold grew stricter with the replicas); NaN with none."""
+    z = np.asarray(scores, dtype=np.float64)
+    z = z[np.isfinite(z)]
+    return float(z.sum() / math.sqrt(z.size)) if z.size else math.nan
+
+
 def bed_gap(z: np.ndarray, z_plate: np.ndarray, sigma: float = 1.0) -> np.ndarray:
     """Gap under the bed [σ]: lowest particle bottom minus plate height.
 
@@ -753,6 +763,7 @@ class Measure:
 
     ``gather`` reads it from a replica's estimators. ``point`` makes the point's scalar
     ``<name>``: ``"mean"`` over replicas (NaN-skipping), ``"sum"`` over replicas,
+    ``"combined"``: the replicas' normal scores combined (:func:`combined_score`),
     ``"pooled_mean"``/``"pooled_sem"`` over every replica's periods of ``pool``
     (a key of :data:`PERIOD_POOLS`); None keeps the replica values only.
     """
@@ -828,7 +839,7 @@ PER_REPLICA: tuple[Measure, ...] = (
     Measure("roll_velocity", "sigma", "mean wall-to-centre contrast of dz per period",
             lambda m: _nanmean(m.roll)),
     Measure("roll_significance", "1", "roll score: normal score of the mean contrast against 0",
-            lambda m: roll_significance(m.roll)),
+            lambda m: roll_significance(m.roll), "combined"),
     Measure("psi6_ramp", "1", "bulk mean |psi6| when the start-up ramp has ended",
             lambda m: m.ramp_check("psi6")),
     Measure("dislocations_ramp", "1", "bulk disks with other than 6 Delaunay neighbours, ramp end",
@@ -844,6 +855,7 @@ _POINT_REDUCERS: dict[str, Callable[[np.ndarray], float | int]] = {
     "sum": lambda v: int(np.sum(v)),
     "pooled_mean": _nanmean,
     "pooled_sem": _sem,
+    "combined": combined_score,
 }
 
 
