@@ -533,7 +533,7 @@ def test_the_law_rows_compile_to_packed_square_roots_and_divisions(name, mode):
     cap = 16
     a = np.zeros(cap)
     marker = P.TANGENT if mode == "tangent" else P.FORWARD
-    fn(LAWS[name].params(), marker, np.zeros((NB, cap)), (a, a, a, a), a, a,
+    fn(LAWS[name].params(), marker, np.zeros((NB, cap)), a, a, a, a, a, a,
        np.zeros(cap, np.int64), np.zeros(cap, np.int8), cap, 0.0)  # fmt: skip
     asm = fn.inspect_asm(fn.signatures[0])
     assert "sqrtpd" in asm and "divpd" in asm

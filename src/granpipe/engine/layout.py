@@ -6,8 +6,6 @@ Defined once, here, for every module of the engine (:mod:`granpipe.engine.neighb
 :class:`granpipe.engine.Simulation`).
 """
 
-from typing import NamedTuple
-
 # rows of vec (NV, N, 2)
 POS, VEL, FRC, POS_BUILD, WALL_REF, T_POS, T_VEL, T_FRC, IM2, MOB2, MG = range(11)
 NV = 11
@@ -64,32 +62,3 @@ STORAGE = (
 )  # fmt: skip
 """Storage arrays every stepping kernel takes, as one tuple in this order
 (``Simulation``'s ``_storage``; ``passes.replica_of`` picks one replica of it)."""
-
-
-class Storage(NamedTuple):
-    """One replica's storage arrays by name, in :data:`STORAGE` order (built by
-    ``passes.replica_of``; the kernels read its fields as compile-time attributes)."""
-
-    vec: object
-    sca: object
-    ivec: object
-    walls: object
-    pair_start: object
-    pair_ij: object
-    pair_c: object
-    pair_xi: object
-    pair_dxi: object
-    old_start: object
-    old_j: object
-    old_xi: object
-    old_dxi: object
-    buf: object
-    touch: object
-    flip: object
-    cell_count: object
-    cell_start: object
-    clock: object
-    counters: object
-
-
-assert Storage._fields == STORAGE

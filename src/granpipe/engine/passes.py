@@ -134,9 +134,8 @@ def _flat(a):
 @njit
 def replica_of(st, r):
     """Replica ``r`` of the storage tuple ``st`` (the arrays of
-    :data:`granpipe.engine.layout.STORAGE`, each with a leading replica axis), as a
-    :class:`granpipe.engine.layout.Storage`."""
-    return L.Storage(
+    :data:`granpipe.engine.layout.STORAGE`, each with a leading replica axis)."""
+    return (
         st[0][r], st[1][r], st[2][r], st[3][r], st[4][r], st[5][r], st[6][r], st[7][r],
         st[8][r], st[9][r], st[10][r], st[11][r], st[12][r], st[13][r], st[14][r],
         st[15][r], st[16][r], st[17][r], st[18][r], st[19][r],
@@ -230,7 +229,6 @@ def gather_compact(law, mode, vec, sca, pair_ij, pair_c, pair_xi, pair_dxi, buf,
     tv = _flat(vec[L.T_VEL])
     w = sca[L.SPIN]
     tw = sca[L.T_SPIN]
-    disks = (p, v, tr, tv, w, tw)
     pi = pair_ij[L.PI]
     pj = pair_ij[L.PJ]
     ssum = pair_c[L.P_SUM]
@@ -245,18 +243,20 @@ def gather_compact(law, mode, vec, sca, pair_ij, pair_c, pair_xi, pair_dxi, buf,
                         pair_dxi[k] = 0.0
             continue
         for k in range(g, g + 4):
-            m = _compact_pair(law, mode, disks, pair_ij, pair_c, pair_xi, pair_dxi, buf, k, m)
+            m = _compact_pair(law, mode, p, v, tr, tv, w, tw, pair_ij, pair_c, pair_xi, pair_dxi,
+                              buf, k, m)  # fmt: skip
     for k in range(m4, npairs):
-        m = _compact_pair(law, mode, disks, pair_ij, pair_c, pair_xi, pair_dxi, buf, k, m)
+        m = _compact_pair(law, mode, p, v, tr, tv, w, tw, pair_ij, pair_c, pair_xi, pair_dxi,
+                          buf, k, m)  # fmt: skip
     return m
 
 
 @njit
-def _compact_pair(law, mode, disks, pair_ij, pair_c, pair_xi, pair_dxi, buf, k, m):
+def _compact_pair(law, mode, p, v, tr, tv, w, tw, pair_ij, pair_c, pair_xi, pair_dxi, buf, k,
+                  m):  # fmt: skip
     """Listed pair ``k`` into entry ``m`` of the compacted rows if it touches (else its
-    history is dropped); returns the new count. ``disks`` is ``(p, v, tr, tv, w, tw)``:
-    the flat positions, velocities and their perturbations, the spins and theirs."""
-    p, v, tr, tv, w, tw = disks
+    history is dropped); returns the new count. ``p, v, tr, tv``: the flat positions,
+    velocities and their perturbations; ``w, tw``: the spins and theirs."""
     i = pair_ij[L.PI, k]
     j = pair_ij[L.PJ, k]
     two = np.uint32(2)
@@ -320,14 +320,14 @@ def _out_rows(buf):
 
 
 @njit
-def law_rows(law, mode, buf, pc, xis, dxis, touch, flip, m, dt):
+def law_rows(law, mode, buf, ssum, slim, smeff, sdiff, xis, dxis, touch, flip, m, dt):
     """The law's leaf on rows ``0 .. m-1`` of the gathered pairs: forces (and torques,
     histories and, with :data:`TANGENT`, their perturbations) into the buffer, zero where
     a pair is apart. Returns ``(touching pairs, some pair deeper than its bound, touch
     flags that changed)``.
 
-    ``pc`` is ``(ssum, slim, smeff, sdiff)``, the pairs' ``a_i + a_j``, overlap bound,
-    ``m_eff`` and ``a_i - a_j``; ``xis``, ``dxis`` their histories and perturbations, advanced in
+    ``ssum, slim, smeff, sdiff`` are the pairs' ``a_i + a_j``, overlap bound, ``m_eff``
+    and ``a_i - a_j``; ``xis``, ``dxis`` their histories and perturbations, advanced in
     place (one array read and written: a second output array, even the same one, made
     LLVM check for overlap at run time and fall back to scalar code). ``touch`` holds
     each pair's contact flag; with :data:`TANGENT`, ``flip`` gets its change (+1, -1, 0),
@@ -337,7 +337,6 @@ def law_rows(law, mode, buf, pc, xis, dxis, touch, flip, m, dt):
     spin = law_has_spin(law)
     history = law_has_history(law)
     tangent = tangent_on(mode)
-    ssum, slim, smeff, sdiff = pc
     dxa, dya, dvxa, dvya, exa, eya, evxa, evya, wia, wja, dwia, dwja = _in_rows(buf)
     fxa, fya, tia, tja, gxa, gya, gtia, gtja = _out_rows(buf)
     ncon = 0
@@ -607,21 +606,18 @@ def _first_deep_pair(pair_ij, buf, ssum, slim, npairs, compact):
 
 
 @njit
-def flat_walls(laws, mode, st, fw, zb, vb, dt, count, info, step, skin):
-    """Contacts of the disks of storage ``st`` with the flat walls, through the law's
-    leaves with the wall's parameters (``laws``: at pairs, then at the left, right and
-    bottom wall). A wall is the second disk
+def flat_walls(walls, law, mode, vec, sca, ivec, fw, zb, vb, dt, count, info, step, near):
+    """Contacts of the disks with the flat walls, through the law's leaves with the wall's
+    parameters (``walls``: at the left, right and bottom wall). A wall is the second disk
     of a contact, infinitely heavy and not turning, moving with the drive (the bottom,
     and the side walls if shaken); normal from the wall into the box, contact point
     mid-overlap (lever ``a_i - overlap/2``), ``m_eff`` the disk's mass, the shear history
     per disk and wall (``sca[L.XI_LEFT + w]``, its perturbation ``sca[L.T_XI_LEFT + w]``).
 
-    The disks tested are those of the near-wall list, rebuilt with ``skin`` when stale
-    (:func:`granpipe.engine.walls.wall_candidates`). Returns the contact count, or -1 (bad
-    state recorded in ``info``).
+    ``near`` is ``(skin, clock, counters)``: the disks tested are those of the near-wall
+    list (:func:`granpipe.engine.walls.wall_candidates`). Returns the contact count, or
+    -1 (bad state recorded in ``info``).
     """
-    law, walls = laws[0], laws[1]
-    vec, sca, ivec = st.vec, st.sca, st.ivec
     spin = law_has_spin(law)
     history = law_has_history(law)
     tangent = tangent_on(mode)
@@ -635,7 +631,10 @@ def flat_walls(laws, mode, st, fw, zb, vb, dt, count, info, step, skin):
     inv_mass = sca[L.INV_MASS]
     contacts = ivec[L.CONTACTS]
     cand = ivec[L.CELL_OF]  # scratch between list builds
-    m = W.wall_candidates(st, fw, zb, skin, history, tangent, cand, info, step)
+    skin, clock, counters = near
+    m = W.wall_candidates(
+        vec, sca, ivec, fw, zb, skin, history, tangent, clock, counters, cand, info, step
+    )
     if m < 0:
         return -1
     lever_torque = W.wall_torque_factor(fw)
@@ -724,34 +723,42 @@ def count_contacts(vec, sca, ivec, pair_ij, pair_c, npairs, fw, zb):
 
 
 @njit
-def forces(laws, mode, st, fw, zb, vb, dt, count, info, step, skin):
-    """Every contact force of one evaluation of the replica's storage ``st``
-    (:class:`granpipe.engine.layout.Storage`; ``laws``: the leaves' parameters at pairs
+def forces(
+    laws, mode, vec, sca, ivec, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, buf, touch,
+    flip, clock, counters, fw, zb, vb, dt, count, info, step, skin,
+):  # fmt: skip
+    """Every contact force of one evaluation (``laws``: the leaves' parameters at pairs
     and at the three flat walls), histories advanced by ``dt``; with ``count``, each
-    disk's contacts (walls included) into ``CONTACTS``. Returns the contact count, or -1
-    after recording a bad overlap in ``info``.
+    disk's contacts (walls included) into ``CONTACTS``. Returns the
+    contact count, or -1 after recording a bad overlap in ``info``. The arrays are one
+    replica's storage (:data:`granpipe.engine.layout.STORAGE`), passed one by one
+    (docs/engine_performance.md, round 13: as named bundles they cost the step loop 4-8 %).
 
     The law runs on all listed pairs, or only on the touching ones (compacted first) when
     fewer than half of them touched at the last evaluation; the results are the same.
     """
     law = laws[0]
-    vec, sca, ivec, pair_start, pair_ij = st.vec, st.sca, st.ivec, st.pair_start, st.pair_ij
-    pair_c, pair_xi, pair_dxi, buf = st.pair_c, st.pair_xi, st.pair_dxi, st.buf
-    touch, flip, counters = st.touch, st.flip, st.counters
     npairs = counters[L.N_PAIRS]
     compact = 2 * counters[L.LAST_PAIR_CONTACTS] < npairs
     if compact:
         m = gather_compact(law, mode, vec, sca, pair_ij, pair_c, pair_xi, pair_dxi, buf, npairs)
-        pc = (buf[L.B_S], buf[L.B_L], buf[L.B_M], buf[L.B_D])
+        ssum, slim, smeff, sdiff = buf[L.B_S], buf[L.B_L], buf[L.B_M], buf[L.B_D]
         xis, dxis = buf[L.B_XI], buf[L.B_DXI]
     else:
         m = npairs
         gather(law, mode, vec, sca, pair_ij, buf, m)
-        pc = (pair_c[L.P_SUM], pair_c[L.P_LIM], pair_c[L.P_MEFF], pair_c[L.P_DIFF])
+        ssum, slim, smeff, sdiff = (
+            pair_c[L.P_SUM],
+            pair_c[L.P_LIM],
+            pair_c[L.P_MEFF],
+            pair_c[L.P_DIFF],
+        )
         xis, dxis = pair_xi, pair_dxi
-    ncon, bad, nflip = law_rows(law, mode, buf, pc, xis, dxis, touch, flip, m, dt)
+    ncon, bad, nflip = law_rows(
+        law, mode, buf, ssum, slim, smeff, sdiff, xis, dxis, touch, flip, m, dt
+    )
     if bad:
-        i, j = _first_deep_pair(pair_ij, buf, pc[0], pc[1], m, compact)
+        i, j = _first_deep_pair(pair_ij, buf, ssum, slim, m, compact)
         _fail(info, L.DEEP_OVERLAP, i, j, step)
         return -1
     valid = False
@@ -778,7 +785,10 @@ def forces(laws, mode, st, fw, zb, vb, dt, count, info, step, skin):
     counters[L.COUNT_STALE] = 0 if (valid and not compact) else 1
     counters[L.LAST_PAIR_CONTACTS] = ncon
     if W.has_flat(fw):
-        nw = flat_walls(laws, mode, st, fw, zb, vb, dt, count, info, step, skin)
+        nw = flat_walls(
+            laws[1], law, mode, vec, sca, ivec, fw, zb, vb, dt, count, info, step,
+            (skin, clock, counters),
+        )  # fmt: skip
         if nw < 0:
             return -1
         ncon += nw
@@ -1045,11 +1055,9 @@ _NBLK = 5
 
 
 @njit
-def _block_means(v2, stride, blk, out):
+def _block_means(v2, stride, blk, out_speed, out_nlam, out_lam):
     """Add a finished step's ``V = sqrt(v2)`` to the block; every ``stride`` steps write the
-    block means of ``V`` (and of lambda if ``out_lam`` is not empty) and start a new one.
-    ``out`` is ``(out_lam, out_nlam, out_speed)``."""
-    out_lam, out_nlam, out_speed = out
+    block means of ``V`` (and of lambda if ``out_lam`` is not empty) and start a new one."""
     blk[_V_SUM] += math.sqrt(v2)
     blk[_IN_BLOCK] += 1.0
     if blk[_IN_BLOCK] == stride:
@@ -1076,19 +1084,20 @@ def _lambda_step(law, vec, sca, pair_dxi, num, den, total, dt, blk, info, step, 
 
 
 @njit
-def replica(laws, mode, n_steps, stride, dt, g, wd, fw, skin, st, out, info):
-    """Advance one replica ``n_steps`` (with the tangent vector under :data:`TANGENT`);
-    ``st`` is its storage (:class:`granpipe.engine.layout.Storage`).
+def replica(laws, mode, n_steps, stride, dt, g, wd, fw, skin, st, out_lam, out_nlam, out_speed,
+            info):  # fmt: skip
+    """Advance one replica ``n_steps`` (with the tangent vector under :data:`TANGENT`).
 
-    Records into ``out = (out_lam, out_nlam, out_speed)``, when ``stride > 0``, block
-    means over ``stride`` steps of ``V = sqrt(sum |v|²)`` and, with the tangent vector,
-    of ``lambda`` (per-step growth rate over non-rattlers; only steps where it is defined
-    count, ``out_nlam`` says how many). Returns the status code.
+    Records, when ``stride > 0``, block means over ``stride`` steps of
+    ``V = sqrt(sum |v|²)`` and, with the tangent vector, of ``lambda`` (per-step growth
+    rate over non-rattlers; only steps where it is defined count, ``out_nlam`` says how
+    many). Returns the status code.
     """
-    vec, sca, ivec, walls = st.vec, st.sca, st.ivec, st.walls
-    pair_ij, pair_c, pair_dxi, clock, counters = (
-        st.pair_ij, st.pair_c, st.pair_dxi, st.clock, st.counters,
-    )  # fmt: skip
+    # fmt: off
+    (vec, sca, ivec, walls, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, _old_start,
+     _old_j, _old_xi, _old_dxi, buf, touch, flip, _cell_count, _cell_start, clock,
+     counters) = st
+    # fmt: on
     law = laws[0]
     tangent = tangent_on(mode)
     history = law_has_history(law)
@@ -1110,13 +1119,16 @@ def replica(laws, mode, n_steps, stride, dt, g, wd, fw, skin, st, out, info):
             ):
                 return info[0]
         if s > 0 and stride > 0:
-            _block_means(v2, stride, blk, out)
+            _block_means(v2, stride, blk, out_speed, out_nlam, out_lam)
         wmoved, zb, vb = W.advance_walls(vec, sca, walls, wd, fw, clock, counters, dt, half_skin)
         counters[L.STEP] = step
         if moved or wmoved or counters[L.FORCE_REBUILD] != 0:
             if not rebuild(vec, sca, ivec, skin, st, history, tangent):
                 return _fail(info, L.LIST_OVERFLOW, -1, -1, step)
-        ncon = forces(laws, mode, st, fw, zb, vb, dt, tangent, info, step, skin)
+        ncon = forces(
+            laws, mode, vec, sca, ivec, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, buf,
+            touch, flip, clock, counters, fw, zb, vb, dt, tangent, info, step, skin,
+        )  # fmt: skip
         if ncon < 0:
             return info[0]
         counters[L.CONTACT_SUM] += ncon
@@ -1132,7 +1144,7 @@ def replica(laws, mode, n_steps, stride, dt, g, wd, fw, skin, st, out, info):
         if bad:
             return _fail(info, L.NONFINITE, _first_nonfinite(vec, sca), -1, counters[L.STEP])
         if stride > 0:
-            _block_means(v2, stride, blk, out)
+            _block_means(v2, stride, blk, out_speed, out_nlam, out_lam)
     if n_steps > 0 and not tangent:
         count_contacts(vec, sca, ivec, pair_ij, pair_c, counters[L.N_PAIRS], fw, zb)
     return L.OK
@@ -1171,13 +1183,20 @@ def refresh_replica(laws, mode, fw, skin, st, dt, info):
     the per-disk norms behind lambda. The second half of a refresh; the evaluation
     advances no history (``dt = 0``), and the caller restores the histories it changed
     (a refresh looks at a state's forces; the next step advances its histories)."""
-    counters = st.counters
-    zb, vb = W.bottom(fw, W.time_now(st.clock, counters, dt))
-    ncon = forces(laws, mode, st, fw, zb, vb, 0.0, True, info, counters[L.STEP], skin)
+    # fmt: off
+    (vec, sca, ivec, _walls, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, _old_start,
+     _old_j, _old_xi, _old_dxi, buf, touch, flip, _cell_count, _cell_start, clock,
+     counters) = st
+    # fmt: on
+    zb, vb = W.bottom(fw, W.time_now(clock, counters, dt))
+    ncon = forces(
+        laws, mode, vec, sca, ivec, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, buf,
+        touch, flip, clock, counters, fw, zb, vb, 0.0, True, info, counters[L.STEP], skin,
+    )  # fmt: skip
     if ncon < 0:
         return info[0]
     if tangent_on(mode):
-        _tangent_norms(laws[0], st.vec, st.sca)
+        _tangent_norms(laws[0], vec, sca)
     return L.OK
 
 
@@ -1185,13 +1204,14 @@ def refresh_replica(laws, mode, fw, skin, st, dt, info):
 
 
 @njit
-def run_serial(laws, mode, n_steps, stride, dt, g, wd, fw, skin, st, out, info):
-    """:func:`replica` over replicas one after another (arrays with a leading replica axis;
-    ``out`` is ``(out_lam, out_nlam, out_speed)``)."""
-    out_lam, out_nlam, out_speed = out
+def run_serial(laws, mode, n_steps, stride, dt, g, wd, fw, skin, st, out_lam, out_nlam,
+               out_speed, info):  # fmt: skip
+    """:func:`replica` over replicas one after another (arrays with a leading replica axis)."""
     for r in range(info.shape[0]):
-        out_r = (out_lam[r], out_nlam[r], out_speed[r])
-        replica(laws, mode, n_steps, stride, dt, g, wd, fw, skin, replica_of(st, r), out_r, info[r])
+        replica(
+            laws, mode, n_steps, stride, dt, g, wd, fw, skin, replica_of(st, r), out_lam[r],
+            out_nlam[r], out_speed[r], info[r],
+        )  # fmt: skip
 
 
 @njit

@@ -36,10 +36,10 @@ def _law(nrep, law, mode, st, npairs):
     pair_c, buf = st[6], st[13]
     c = 0
     for _ in range(nrep):
-        pc = (pair_c[L.P_SUM], pair_c[L.P_LIM], pair_c[L.P_MEFF], pair_c[L.P_DIFF])
         c += P.law_rows(
-            law, mode, buf, pc, buf[L.B_XI], buf[L.B_DXI], st.touch, st.flip, npairs, 0.0
-        )[0]
+            law, mode, buf, pair_c[L.P_SUM], pair_c[L.P_LIM], pair_c[L.P_MEFF], pair_c[L.P_DIFF],
+            buf[L.B_XI], buf[L.B_DXI], st[14], st[15], npairs, 0.0,
+        )[0]  # fmt: skip
     return c
 
 
@@ -52,9 +52,13 @@ def _scatter(nrep, law, mode, st):
 @njit
 def _walls(nrep, laws, mode, st, fw, skin, info):
     # the near-wall list as the step finds it (built once, with the neighbour list)
+    vec, sca, ivec, clock, counters = st[0], st[1], st[2], st[18], st[19]
     c = 0
     for _ in range(nrep):
-        c += P.flat_walls(laws, mode, st, fw, 0.0, 0.0, 0.0, False, info, 0, skin)
+        c += P.flat_walls(
+            laws[1], laws[0], mode, vec, sca, ivec, fw, 0.0, 0.0, 0.0, False, info, 0,
+            (skin, clock, counters),
+        )  # fmt: skip
     return c
 
 
@@ -91,7 +95,7 @@ def profile_passes(laws, fw, skin, storage, repeats: int = 5, nrep: int = 2000) 
     ``laws`` are the leaves' parameters at pairs and flat walls, ``fw`` the flat walls'
     parameters (:meth:`granpipe.engine.Simulation.profile_passes` supplies both).
     """
-    st = L.Storage(*(a[0] for a in storage))
+    st = tuple(a[0] for a in storage)
     law = laws[0]
     npairs = int(st[19][L.N_PAIRS])
     out = {"n_pairs": npairs, "n_particles": int(st[0].shape[1])}

@@ -936,7 +936,7 @@ class Simulation:
         def replicas(r0, r1):
             P.run_serial(
                 laws, mode, n_steps, stride, self.dt, g, wd, fw, skin,
-                tuple(a[r0:r1] for a in storage), (lam[r0:r1], nlam[r0:r1], speed[r0:r1]),
+                tuple(a[r0:r1] for a in storage), lam[r0:r1], nlam[r0:r1], speed[r0:r1],
                 s["info"][r0:r1],
             )  # fmt: skip
 

@@ -350,7 +350,8 @@ def near_walls(vec, sca, ivec, fw, zb, skin, reset, clock, counters):
 
 
 @njit
-def wall_candidates(st, fw, zb, skin, reset, tangent, out, info, step):
+def wall_candidates(vec, sca, ivec, fw, zb, skin, reset, tangent, clock, counters, out, info,
+                    step):  # fmt: skip
     """Disks of the near-wall list (:func:`near_walls`, rebuilt here when stale) touching
     at least one flat wall, listed in ``out``; returns how many, or -1 (recorded in
     ``info``) if one overlaps a wall by more than the bound (``clock[OVERLAP_FRAC]``
@@ -360,9 +361,7 @@ def wall_candidates(st, fw, zb, skin, reset, tangent, out, info, step):
     with history), the shear history against each wall of the listed disks not touching
     it is zeroed, and with ``tangent`` its perturbation too. Most disks touch no wall,
     so the branch is well predicted and the contact loop only sees the touching disks.
-    ``st`` is the replica's storage (:class:`granpipe.engine.layout.Storage`).
     """
-    vec, sca, ivec, clock, counters = st.vec, st.sca, st.ivec, st.clock, st.counters
     if counters[L.NEAR_WALLS] < 0:
         near_walls(vec, sca, ivec, fw, zb, skin, reset, clock, counters)
     p = vec[L.POS].reshape(vec[L.POS].size)
