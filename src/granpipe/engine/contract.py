@@ -109,6 +109,10 @@ def pair_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi
     piece : int
         Which smooth piece of the law applied (the law's own codes); passed back to
         :func:`pair_force_jvp`.
+
+    The scalars one by one: the contract's calling convention, the same for every law and
+    compiled into the passes' row loops (docs/engine_performance.md, round 13, bundled the
+    storage arrays only; the leaves' arguments were not bundled nor measured).
     """
     raise NotImplementedError("a generic leaf: implemented per law (numba overload)")
 
@@ -127,6 +131,8 @@ def pair_force_jvp(
     Returns
     -------
     dfx, dfy, dtau_i, dtau_j, dxi_new : float
+
+    The arguments one by one, as :func:`pair_force`'s.
     """
     raise NotImplementedError("a generic leaf: implemented per law (numba overload)")
 
@@ -147,6 +153,8 @@ def perturbed_kinematics(
     dvn, dvt : float
         Perturbations of the normal relative velocity and of the slip velocity at the
         contact point ``v . t - l_i w_i - l_j w_j``.
+
+    The scalars one by one, as the leaves that call it take them (:func:`pair_force`).
     """
     psi = curv * (ddy * nx - ddx * ny)
     dr = ddx * nx + ddy * ny
@@ -390,7 +398,7 @@ def _pair_geometry(d, radius_i, radius_j):
 
 @njit
 def evaluate_pair(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
-    """:func:`pair_force` called from Python (tests, studies)."""
+    """:func:`pair_force` called from Python (tests, studies), with its arguments."""
     return pair_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt)
 
 
@@ -399,7 +407,7 @@ def evaluate_pair_jvp(
     law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
     ddx, ddy, dvx, dvy, dw_i, dw_j, dxi,
 ):  # fmt: skip
-    """:func:`pair_force_jvp` called from Python."""
+    """:func:`pair_force_jvp` called from Python, with its arguments."""
     return pair_force_jvp(
         law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
         ddx, ddy, dvx, dvy, dw_i, dw_j, dxi,

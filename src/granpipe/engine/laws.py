@@ -77,6 +77,7 @@ class BoxParams(NamedTuple):
     mu: float
 
 
+# the signature of contract.pair_force (its scalars one by one: see its docstring)
 @law_leaf(pair_force, DrumParams)
 def _drum_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
     vn = vx * nx + vy * ny
@@ -94,6 +95,7 @@ def _drum_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, x
     return fx, fy, 0.0, 0.0, 0.0, f_n, f_t, piece
 
 
+# the signature of contract.pair_force_jvp (its scalars one by one: see pair_force)
 @law_leaf(pair_force_jvp, DrumParams)
 def _drum_jvp(
     law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
@@ -113,6 +115,7 @@ def _drum_jvp(
     return a * nx - b * ny, a * ny + b * nx, 0.0, 0.0, 0.0
 
 
+# the signature of contract.pair_force (its scalars one by one: see its docstring)
 @law_leaf(pair_force, BoxParams)
 def _box_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
     overlap = -delta
@@ -129,6 +132,7 @@ def _box_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi
     return fx, fy, -lever_i * f_t, -lever_j * f_t, xi_new, f_n, f_t, 1 if slip else 0
 
 
+# the signature of contract.pair_force_jvp (its scalars one by one: see pair_force)
 @law_leaf(pair_force_jvp, BoxParams)
 def _box_jvp(
     law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,

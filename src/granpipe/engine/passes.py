@@ -58,6 +58,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numba
 import numpy as np
 from numba import types
 from numba.extending import overload
@@ -256,7 +257,11 @@ def _compact_pair(law, mode, p, v, tr, tv, w, tw, pair_ij, pair_c, pair_xi, pair
                   m):  # fmt: skip
     """Listed pair ``k`` into entry ``m`` of the compacted rows if it touches (else its
     history is dropped); returns the new count. ``p, v, tr, tv``: the flat positions,
-    velocities and their perturbations; ``w, tw``: the spins and theirs."""
+    velocities and their perturbations; ``w, tw``: the spins and theirs.
+
+    Flat arguments: with the storage as named bundles the drum with tangent and the driven
+    box ran 4-10 % slower (docs/engine_performance.md, round 13).
+    """
     i = pair_ij[L.PI, k]
     j = pair_ij[L.PJ, k]
     two = np.uint32(2)
@@ -299,7 +304,10 @@ def _compact_pair(law, mode, p, v, tr, tv, w, tw, pair_ij, pair_c, pair_xi, pair
     return m + 1
 
 
-@njit
+# Inlined in numba's IR: as plain calls they left 150 calls in law_rows' machine code against
+# the alias block's 96, and the drum with tangent ran 1-4 %, the driven box 3-5 % slower
+# (docs/engine_performance.md, round 13).
+@numba.njit(inline="always", **JIT_OPTIONS)
 def _in_rows(buf):
     """The buffer's rows the gather writes, as views: ``(dx, dy, dvx, dvy, ex, ey, evx,
     evy, wi, wj, dwi, dwj)`` (:mod:`granpipe.engine.layout`, ``B_DX`` .. ``B_DWJ``)."""
@@ -309,7 +317,8 @@ def _in_rows(buf):
     )  # fmt: skip
 
 
-@njit
+# Inlined for the same reason as _in_rows.
+@numba.njit(inline="always", **JIT_OPTIONS)
 def _out_rows(buf):
     """The buffer's rows the law writes, as views: ``(fx, fy, ti, tj, gx, gy, gti, gtj)``
     (``B_FX`` .. ``B_GTJ``)."""
@@ -333,6 +342,8 @@ def law_rows(law, mode, buf, ssum, slim, smeff, sdiff, xis, dxis, touch, flip, m
     each pair's contact flag; with :data:`TANGENT`, ``flip`` gets its change (+1, -1, 0),
     so that per-disk contact counts can be moved instead of recounted. A plain loop with
     no early exit: LLVM vectorises it (tests/engine/test_contract.py checks the assembly).
+    Flat arguments: with the storage as named bundles the drum with tangent and the driven
+    box ran 4-10 % slower (docs/engine_performance.md, round 13).
     """
     spin = law_has_spin(law)
     history = law_has_history(law)
@@ -616,7 +627,9 @@ def flat_walls(walls, law, mode, vec, sca, ivec, fw, zb, vb, dt, count, info, st
 
     ``near`` is ``(skin, clock, counters)``: the disks tested are those of the near-wall
     list (:func:`granpipe.engine.walls.wall_candidates`). Returns the contact count, or
-    -1 (bad state recorded in ``info``).
+    -1 (bad state recorded in ``info``). Flat arguments: with the storage as named bundles
+    the drum with tangent and the driven box ran 4-10 % slower (docs/engine_performance.md,
+    round 13).
     """
     spin = law_has_spin(law)
     history = law_has_history(law)
@@ -732,7 +745,7 @@ def forces(
     disk's contacts (walls included) into ``CONTACTS``. Returns the
     contact count, or -1 after recording a bad overlap in ``info``. The arrays are one
     replica's storage (:data:`granpipe.engine.layout.STORAGE`), passed one by one
-    (docs/engine_performance.md, round 13: as named bundles they cost the step loop 4-8 %).
+    (docs/engine_performance.md, round 13: as named bundles they cost the step loop 4-10 %).
 
     The law runs on all listed pairs, or only on the touching ones (compacted first) when
     fewer than half of them touched at the last evaluation; the results are the same.
@@ -1091,7 +1104,9 @@ def replica(laws, mode, n_steps, stride, dt, g, wd, fw, skin, st, out_lam, out_n
     Records, when ``stride > 0``, block means over ``stride`` steps of
     ``V = sqrt(sum |v|²)`` and, with the tangent vector, of ``lambda`` (per-step growth
     rate over non-rattlers; only steps where it is defined count, ``out_nlam`` says how
-    many). Returns the status code.
+    many). Returns the status code. Flat arguments: with the storage and the records as
+    named bundles the drum with tangent and the driven box ran 4-10 % slower
+    (docs/engine_performance.md, round 13).
     """
     # fmt: off
     (vec, sca, ivec, walls, pair_start, pair_ij, pair_c, pair_xi, pair_dxi, _old_start,
@@ -1206,7 +1221,8 @@ def refresh_replica(laws, mode, fw, skin, st, dt, info):
 @njit
 def run_serial(laws, mode, n_steps, stride, dt, g, wd, fw, skin, st, out_lam, out_nlam,
                out_speed, info):  # fmt: skip
-    """:func:`replica` over replicas one after another (arrays with a leading replica axis)."""
+    """:func:`replica` over replicas one after another (arrays with a leading replica axis);
+    its flat arguments are :func:`replica`'s (docs/engine_performance.md, round 13)."""
     for r in range(info.shape[0]):
         replica(
             laws, mode, n_steps, stride, dt, g, wd, fw, skin, replica_of(st, r), out_lam[r],

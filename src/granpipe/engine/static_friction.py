@@ -71,6 +71,7 @@ class StaticFrictionParams(NamedTuple):
     mu: float
 
 
+# the signature of contract.pair_force (its scalars one by one: see its docstring)
 @law_leaf(pair_force, StaticFrictionParams)
 def _force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
     vn = vx * nx + vy * ny
@@ -86,6 +87,7 @@ def _force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt
     return fx, fy, -lever_i * f_t, -lever_j * f_t, xi_new, f_n, f_t, piece
 
 
+# the signature of contract.pair_force_jvp (its scalars one by one: see pair_force)
 @law_leaf(pair_force_jvp, StaticFrictionParams)
 def _jvp(
     law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
