@@ -299,30 +299,6 @@ class LongWaveWork(NamedTuple):
     rhs: np.ndarray
 
 
-class Rk4Work(NamedTuple):
-    """Scratch of one RK4 step of a state (Y, V) of n points: the stage accelerations
-    ``k1`` … ``k4`` and the stage velocities ``v1``, ``v2``, ``v3`` (n,) and the stage
-    positions ``Ys`` (n,), in the state's units."""
-
-    k1: np.ndarray
-    k2: np.ndarray
-    k3: np.ndarray
-    k4: np.ndarray
-    v1: np.ndarray
-    v2: np.ndarray
-    v3: np.ndarray
-    Ys: np.ndarray
-
-
-@njit
-def _rk4_work(n):
-    """:class:`Rk4Work` for n points."""
-    return Rk4Work(
-        np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n),
-        np.empty(n), np.empty(n),
-    )  # fmt: skip
-
-
 @njit
 def _lw_accel(Y, V, lw, a_bottom, a_top, work, out):
     """Y_ττ of the derived long-wave model at every node, in chain units.
@@ -371,7 +347,7 @@ def _lw_accel(Y, V, lw, a_bottom, a_top, work, out):
     out[0] = a_bottom
 
 
-@njit
+@njit_inline
 def _floor_at(t, drive, tap_start, in_tap):
     """y0, ẏ0, ÿ0 of the :class:`FloorDrive` at time t, in the tap that starts at
     ``tap_start`` (``in_tap``) or between taps."""
@@ -382,7 +358,7 @@ def _floor_at(t, drive, tap_start, in_tap):
     return 0.0, 0.0, 0.0
 
 
-@njit
+@njit_inline
 def _lw_set_ends(t, Y, V, drive, tap_start, in_tap, hybrid, top):
     """Sets the bottom node on the floor and, if ``hybrid``, the top node on the
     :class:`DiscreteTop` at time t; returns the floor's acceleration."""
@@ -444,7 +420,15 @@ def _lw_run(Y, V, lw, drive, top, t_end, cfl, rec_t, out_y, out_v):
     """
     n = Y.size
     work = LongWaveWork(np.empty(n - 1), np.empty(n), np.empty(n), np.empty(n), np.empty(n))
-    k1, k2, k3, k4, v1, v2, v3, Ys = _rk4_work(n)
+    # the RK4 stage arrays as locals: held in a NamedTuple the run measured ~1 % slower
+    k1 = np.empty(n)
+    k2 = np.empty(n)
+    k3 = np.empty(n)
+    k4 = np.empty(n)
+    Ys = np.empty(n)
+    v1 = np.empty(n)
+    v2 = np.empty(n)
+    v3 = np.empty(n)
     e, w_sigma, hybrid = lw.e, lw.w_sigma, lw.hybrid
     nrec = rec_t.size
     i_rec = 0
@@ -710,6 +694,15 @@ def _burgers_rate(u, u_bottom, dz, out):
         out[i] = -(flux[i + 1] - flux[i]) / dz
 
 
+@njit
+def _momentum_rates(u, u_bottom, z_cell, dz, H, eq45, phi, adv, src):
+    """The two terms of u_t in Eq. (45) in one call: the transport −∂z(u²/2) into ``adv``
+    (:func:`_burgers_rate`) and the source into ``src`` (:func:`_bsr_force`), both (n,)
+    [length/time²]; arguments as there."""
+    _burgers_rate(u, u_bottom, dz, adv)
+    _bsr_force(u, u_bottom, z_cell, dz, H, eq45, phi, src)
+
+
 def bsr_kernel_force(p: ColumnParams, z_cell, u, dz, u_bottom=0.0, phi=np.inf, b=None, c=None):
     """The right-hand side of Eq. (45) at cell centres (see :func:`_bsr_force`)."""
     H = int(round(p.h / dz))
@@ -803,8 +796,7 @@ def solve_bsr(
 
     def rate(t, uu, rr, seg):
         ub, _ = bottom(t, seg)
-        _burgers_rate(uu, ub, dz, adv)
-        _bsr_force(uu, ub, zc, dz, H, eq45, phi(t), src)
+        _momentum_rates(uu, ub, zc, dz, H, eq45, phi(t), adv, src)
         du = adv + src
         if forcing is not None:
             du = du + np.asarray(forcing(zc, t), dtype=np.float64)
@@ -1000,7 +992,7 @@ class FloorGhosts(NamedTuple):
     v: np.ndarray
 
 
-@njit
+@njit_inline
 def _bsr_set_bounds(t, y, v, bsr, ghosts, drive, tap_start, in_tap, top):
     """Ghosts ride with the floor; pinned points (hybrid top) with the discrete top.
 
@@ -1022,16 +1014,6 @@ def _bsr_set_bounds(t, y, v, bsr, ghosts, drive, tap_start, in_tap, top):
             v[i] = vt
 
 
-@njit_inline
-def _bsr_rates(y, v, bsr, ghosts, out):
-    """:func:`_bsr_accel` of the state (y, v) with the :class:`DerivedBsr` ``bsr`` and the
-    :class:`FloorGhosts` ``ghosts``."""
-    _bsr_accel(
-        y, v, ghosts.y, ghosts.v, bsr.W, bsr.ds, bsr.G, bsr.e, bsr.w_sigma, bsr.first_pinned,
-        out,
-    )  # fmt: skip
-
-
 @njit
 def _bsr_run(Y, V, bsr, ghosts, drive, top, t_end, cfl, rec_t, out_y):
     """RK4 of :func:`_bsr_accel`, steps ending at the floor's switches and the records.
@@ -1047,8 +1029,17 @@ def _bsr_run(Y, V, bsr, ghosts, drive, top, t_end, cfl, rec_t, out_y):
     1 blow-up, time).
     """
     M = Y.size
-    k1, k2, k3, k4, v1, v2, v3, Ys = _rk4_work(M)
+    k1 = np.empty(M)
+    k2 = np.empty(M)
+    k3 = np.empty(M)
+    k4 = np.empty(M)
+    Ys = np.empty(M)
+    v1 = np.empty(M)
+    v2 = np.empty(M)
+    v3 = np.empty(M)
     W, ds, e, w_sigma = bsr.W, bsr.ds, bsr.e, bsr.w_sigma
+    # the bundles' fields read once, outside the steps: read per call the run measured 2 % slower
+    yg, vg, G, first_pinned = ghosts.y, ghosts.v, bsr.G, bsr.first_pinned
     s2 = 0.0
     for j in range(W.size):
         s2 += W[j] / ((j + 1) * ds)
@@ -1071,21 +1062,21 @@ def _bsr_run(Y, V, bsr, ghosts, drive, top, t_end, cfl, rec_t, out_y):
             cmax = _max_compression(Y, ds)
             hs = min(stop - t, cfl / (wave + 2.0 * e * cmax * s2 / w_sigma))
             _bsr_set_bounds(t, Y, V, bsr, ghosts, drive, ts, in_tap, top)
-            _bsr_rates(Y, V, bsr, ghosts, k1)
+            _bsr_accel(Y, V, yg, vg, W, ds, G, e, w_sigma, first_pinned, k1)
             th = t + 0.5 * hs
             rk4_stage(Y, V, 0.5 * hs, Ys)
             rk4_stage(V, k1, 0.5 * hs, v1)
             _bsr_set_bounds(th, Ys, v1, bsr, ghosts, drive, ts, in_tap, top)
-            _bsr_rates(Ys, v1, bsr, ghosts, k2)
+            _bsr_accel(Ys, v1, yg, vg, W, ds, G, e, w_sigma, first_pinned, k2)
             rk4_stage(Y, v1, 0.5 * hs, Ys)
             rk4_stage(V, k2, 0.5 * hs, v2)
             _bsr_set_bounds(th, Ys, v2, bsr, ghosts, drive, ts, in_tap, top)
-            _bsr_rates(Ys, v2, bsr, ghosts, k3)
+            _bsr_accel(Ys, v2, yg, vg, W, ds, G, e, w_sigma, first_pinned, k3)
             rk4_stage(Y, v2, hs, Ys)
             rk4_stage(V, k3, hs, v3)
             t1 = t + hs
             _bsr_set_bounds(t1, Ys, v3, bsr, ghosts, drive, ts, in_tap, top)
-            _bsr_rates(Ys, v3, bsr, ghosts, k4)
+            _bsr_accel(Ys, v3, yg, vg, W, ds, G, e, w_sigma, first_pinned, k4)
             rk4_combine(Y, V, v1, v2, v3, hs, Y)
             rk4_combine(V, k1, k2, k3, k4, hs, V)
             bad = False
