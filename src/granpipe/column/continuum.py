@@ -73,11 +73,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from .._jit import njit
-from .discrete import rk4_combine, rk4_stage
+from .discrete import njit_inline, rk4_combine, rk4_stage
 from .model import ColumnParams
 
 __all__ = [
@@ -149,6 +150,34 @@ class _TopBoundary:
         if self.t is None:
             return np.inf
         return float(np.interp(t, self.t, self.y))
+
+
+class FloorDrive(NamedTuple):
+    """The floor's taps (Eqs. 2–3), in the units of the column given: y0(t) = ``a``
+    sin(``omega`` (t − kT)) for kT < t ≤ kT + ``duration``, y0 = 0 for the rest of each
+    period ``T``; ``a`` [length], ``omega`` [1/time], ``T`` and ``duration`` [time]."""
+
+    a: float
+    omega: float
+    T: float
+    duration: float
+
+
+def floor_drive(p: ColumnParams) -> FloorDrive:
+    """The taps of the column ``p`` as a :class:`FloorDrive`."""
+    return FloorDrive(p.a, p.omega, p.T, p.tap_duration)
+
+
+class DiscreteTop(NamedTuple):
+    """The discrete column's top that a hybrid continuum top follows, sampled at the times
+    ``t`` (n,) [sqrt(m/K)]: the height ``y`` [h] of the point the continuum follows (each
+    solver states which), its velocity ``v`` [h sqrt(K/m)] and acceleration ``a``
+    [h K/m], each (n,), chain units. A free top passes placeholders of two samples."""
+
+    t: np.ndarray
+    y: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
 
 
 # --------------------------------------------------------------------------- chain units
@@ -244,15 +273,46 @@ LW_GAMMA = 1.0 / 12.0
 """Dispersive coefficient of the derived long-wave model, in units of h² (ω² = 4 sin²(k/2))."""
 
 
+class LongWave(NamedTuple):
+    """The derived long-wave model on its nodes z_j = j ``dz`` [h], chain units: gravity
+    ``G`` = mg/(Kh), restitution ``e``, the width ``w_sigma`` of σ(W) = tanh(W/w_σ)
+    [h sqrt(K/m)], and ``hybrid``: the top node follows the discrete top (else it is
+    free)."""
+
+    dz: float
+    G: float
+    e: float
+    w_sigma: float
+    hybrid: bool
+
+
+class LongWaveWork(NamedTuple):
+    """Scratch of :func:`_lw_accel` on J + 1 nodes: the forces ``phi`` (J,) [K h] on the
+    half nodes and the regularizing operator's tridiagonal system, its sub-diagonal
+    ``lower``, diagonal ``diag``, super-diagonal ``upper`` and right-hand side ``rhs``,
+    each (J + 1,)."""
+
+    phi: np.ndarray
+    lower: np.ndarray
+    diag: np.ndarray
+    upper: np.ndarray
+    rhs: np.ndarray
+
+
 @njit
-def _lw_accel(Y, V, dz, G, e, w_sigma, a_bottom, hybrid, a_top, phi, l, d, u, b, out):
+def _lw_accel(Y, V, lw, a_bottom, a_top, work, out):
     """Y_ττ of the derived long-wave model at every node, in chain units.
 
     (1 − D2/12) Y_ττ = −G − ∂_Z Φ,  Φ = [1 − e tanh(W/w_σ)] C⁺,  C = 1 − Y_Z, W = Y_τZ,
     with Φ on the half nodes, the bottom node prescribed (a_0 = ``a_bottom``) and the top
-    node either prescribed (``hybrid``: a_J = ``a_top``) or free: Φ = 0 above it, half a
-    cell of mass, and Neumann data for the regularizing operator.
+    node either prescribed (``lw.hybrid``: a_J = ``a_top``) or free: Φ = 0 above it, half
+    a cell of mass, and Neumann data for the regularizing operator.
+
+    Y, V, out : (J + 1,) heights [h], velocities [h sqrt(K/m)], accelerations [h K/m];
+    lw : LongWave; work : LongWaveWork.
     """
+    dz, G, e, w_sigma = lw.dz, lw.G, lw.e, lw.w_sigma
+    phi, l, d, u, b = work.phi, work.lower, work.diag, work.upper, work.rhs
     J = Y.size - 1
     for j in range(J):
         C = 1.0 - (Y[j + 1] - Y[j]) / dz
@@ -267,7 +327,7 @@ def _lw_accel(Y, V, dz, G, e, w_sigma, a_bottom, hybrid, a_top, phi, l, d, u, b,
         d[j] = 1.0 + 2.0 * g2
         u[j] = -g2
         b[j] = -G - (phi[j] - phi[j - 1]) / dz
-    if hybrid:
+    if lw.hybrid:
         l[J] = 0.0
         d[J] = 1.0
         b[J] = a_top
@@ -287,32 +347,37 @@ def _lw_accel(Y, V, dz, G, e, w_sigma, a_bottom, hybrid, a_top, phi, l, d, u, b,
     out[0] = a_bottom
 
 
-@njit
-def _floor_at(t, A, Om, tap_start, in_tap):
+@njit_inline
+def _floor_at(t, drive, tap_start, in_tap):
+    """y0, ẏ0, ÿ0 of the :class:`FloorDrive` at time t, in the tap that starts at
+    ``tap_start`` (``in_tap``) or between taps."""
     if in_tap:
+        A, Om = drive.a, drive.omega
         s = Om * (t - tap_start)
         return A * math.sin(s), A * Om * math.cos(s), -A * Om * Om * math.sin(s)
     return 0.0, 0.0, 0.0
 
 
-@njit
-def _lw_set_ends(t, Y, V, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v):
-    y0, v0, a0 = _floor_at(t, A, Om, ts, in_tap)
+@njit_inline
+def _lw_set_ends(t, Y, V, drive, tap_start, in_tap, hybrid, top):
+    """Sets the bottom node on the floor and, if ``hybrid``, the top node on the
+    :class:`DiscreteTop` at time t; returns the floor's acceleration."""
+    y0, v0, a0 = _floor_at(t, drive, tap_start, in_tap)
     Y[0] = y0
     V[0] = v0
     if hybrid:
-        Y[-1] = np.interp(t, top_t, top_y)
-        V[-1] = np.interp(t, top_t, top_v)
+        Y[-1] = np.interp(t, top.t, top.y)
+        V[-1] = np.interp(t, top.t, top.v)
     return a0
 
 
 @njit
-def _drive_segment(t, T, dur, A, eps):
+def _drive_segment(t, drive, eps):
     """(tap start, in_tap, end) of the floor's smooth piece that contains time t."""
-    kk = math.floor((t + eps) / T)
-    ts = kk * T
-    in_tap = A > 0.0 and t + eps < ts + dur
-    return ts, in_tap, (ts + dur if in_tap else (kk + 1) * T)
+    kk = math.floor((t + eps) / drive.T)
+    ts = kk * drive.T
+    in_tap = drive.a > 0.0 and t + eps < ts + drive.duration
+    return ts, in_tap, (ts + drive.duration if in_tap else (kk + 1) * drive.T)
 
 
 @njit
@@ -333,24 +398,29 @@ def _max_compression(Y, spacing):
     return cmax
 
 
+@njit_inline
+def _top_accel(t, hybrid, top):
+    """The discrete top's acceleration at time t if ``hybrid``, else 0."""
+    return np.interp(t, top.t, top.a) if hybrid else 0.0
+
+
 @njit
-def _lw_run(
-    Y, V, dz, G, e, w_sigma, A, Om, T, dur, t_end, rec_t, hybrid, top_t, top_y, top_v,
-    top_a, cfl, out_y, out_v,
-):  # fmt: skip
+def _lw_run(Y, V, lw, drive, top, t_end, cfl, rec_t, out_y, out_v):
     """RK4 in time for :func:`_lw_accel`; the step follows the fastest linear rate.
 
     The regularized operator bounds the wave frequency by sqrt(12(1 + e)) and the rate of
     the viscosity that the smooth σ implies, e C/w_σ · k²/(1 + k²/12), by 12 e C_max/w_σ,
     independently of dz. Steps end exactly at the floor's switches (t = kT, kT + π/ω) and
-    at record times. Returns (records written, status: 0 ok, 1 blow-up, time of blow-up).
+    at record times.
+
+    Y, V : (J + 1,) the state, advanced in place; lw : LongWave; drive : FloorDrive;
+    top : DiscreteTop (used if ``lw.hybrid``); t_end [sqrt(m/K)]; cfl : step factor;
+    rec_t : (n_rec,) record times; out_y, out_v : (n_rec, J + 1) records, filled.
+    Returns (records written, status: 0 ok, 1 blow-up, time of blow-up).
     """
     n = Y.size
-    phi = np.empty(n - 1)
-    l = np.empty(n)
-    d = np.empty(n)
-    u = np.empty(n)
-    b = np.empty(n)
+    work = LongWaveWork(np.empty(n - 1), np.empty(n), np.empty(n), np.empty(n), np.empty(n))
+    # the RK4 stage arrays as locals: held in a NamedTuple the run measured ~1 % slower
     k1 = np.empty(n)
     k2 = np.empty(n)
     k3 = np.empty(n)
@@ -359,15 +429,16 @@ def _lw_run(
     v1 = np.empty(n)
     v2 = np.empty(n)
     v3 = np.empty(n)
+    e, w_sigma, hybrid = lw.e, lw.w_sigma, lw.hybrid
     nrec = rec_t.size
     i_rec = 0
     t = 0.0
     wave = math.sqrt(12.0 * (1.0 + e))
-    vmax0 = 1.0 + A * Om
+    vmax0 = 1.0 + drive.a * drive.omega
     eps = 1e-12 * max(1.0, t_end)
     while True:
-        ts, in_tap, seg_end = _drive_segment(t, T, dur, A, eps)
-        _lw_set_ends(t, Y, V, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
+        ts, in_tap, seg_end = _drive_segment(t, drive, eps)
+        _lw_set_ends(t, Y, V, drive, ts, in_tap, hybrid, top)
         while i_rec < nrec and rec_t[i_rec] <= t + eps:
             out_y[i_rec] = Y
             out_v[i_rec] = V
@@ -376,27 +447,27 @@ def _lw_run(
             return i_rec, 0, t
         stop = _next_stop(seg_end, t_end, rec_t, i_rec)
         while stop - t > eps:
-            cmax = _max_compression(Y, dz)
+            cmax = _max_compression(Y, lw.dz)
             hs = min(stop - t, cfl / (wave + 12.0 * e * cmax / w_sigma))
-            at = np.interp(t, top_t, top_a) if hybrid else 0.0
-            a0 = _lw_set_ends(t, Y, V, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
-            _lw_accel(Y, V, dz, G, e, w_sigma, a0, hybrid, at, phi, l, d, u, b, k1)
+            at = _top_accel(t, hybrid, top)
+            a0 = _lw_set_ends(t, Y, V, drive, ts, in_tap, hybrid, top)
+            _lw_accel(Y, V, lw, a0, at, work, k1)
             th = t + 0.5 * hs
-            at = np.interp(th, top_t, top_a) if hybrid else 0.0
+            at = _top_accel(th, hybrid, top)
             rk4_stage(Y, V, 0.5 * hs, Ys)
             rk4_stage(V, k1, 0.5 * hs, v1)
-            a0 = _lw_set_ends(th, Ys, v1, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
-            _lw_accel(Ys, v1, dz, G, e, w_sigma, a0, hybrid, at, phi, l, d, u, b, k2)
+            a0 = _lw_set_ends(th, Ys, v1, drive, ts, in_tap, hybrid, top)
+            _lw_accel(Ys, v1, lw, a0, at, work, k2)
             rk4_stage(Y, v1, 0.5 * hs, Ys)
             rk4_stage(V, k2, 0.5 * hs, v2)
-            a0 = _lw_set_ends(th, Ys, v2, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
-            _lw_accel(Ys, v2, dz, G, e, w_sigma, a0, hybrid, at, phi, l, d, u, b, k3)
+            a0 = _lw_set_ends(th, Ys, v2, drive, ts, in_tap, hybrid, top)
+            _lw_accel(Ys, v2, lw, a0, at, work, k3)
             rk4_stage(Y, v2, hs, Ys)
             rk4_stage(V, k3, hs, v3)
             t1 = t + hs
-            at = np.interp(t1, top_t, top_a) if hybrid else 0.0
-            a0 = _lw_set_ends(t1, Ys, v3, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
-            _lw_accel(Ys, v3, dz, G, e, w_sigma, a0, hybrid, at, phi, l, d, u, b, k4)
+            at = _top_accel(t1, hybrid, top)
+            a0 = _lw_set_ends(t1, Ys, v3, drive, ts, in_tap, hybrid, top)
+            _lw_accel(Ys, v3, lw, a0, at, work, k4)
             rk4_combine(Y, V, v1, v2, v3, hs, Y)
             rk4_combine(V, k1, k2, k3, k4, hs, V)
             bad = False
@@ -406,7 +477,7 @@ def _lw_run(
             t = t1
             if bad:
                 return i_rec, 1, t
-            _lw_set_ends(t, Y, V, A, Om, ts, in_tap, hybrid, top_t, top_y, top_v)
+            _lw_set_ends(t, Y, V, drive, ts, in_tap, hybrid, top)
 
 
 def longwave_equilibrium(q: ColumnParams, z: np.ndarray) -> np.ndarray:
@@ -475,10 +546,11 @@ def solve_longwave(
     rec_t = np.arange(int(math.floor(t_end / record_dt + 1e-9)) + 1) * record_dt
     out_y = np.full((rec_t.size, J + 1), np.nan)
     out_v = np.full((rec_t.size, J + 1), np.nan)
+    lw = LongWave(dz, q.g, q.e, float(sigma_width), hybrid)
+    top_track = DiscreteTop(top_t, top_y, top_v, top_a)
     n, status, t_bad = _lw_run(
-        Y, V, dz, q.g, q.e, float(sigma_width), q.a, q.omega, q.T, q.tap_duration,
-        float(t_end), rec_t, hybrid, top_t, top_y, top_v, top_a, float(cfl), out_y, out_v,
-    )  # fmt: skip
+        Y, V, lw, floor_drive(q), top_track, float(t_end), float(cfl), rec_t, out_y, out_v
+    )
     if status:
         from ..errors import SimulationError
 
@@ -534,14 +606,33 @@ def _transport_rate(rho, vel_face, dz, rho_bottom, wall_bottom, out):
 
 
 # --------------------------------------------------------------------------- BSR
+class PrintedKernel(NamedTuple):
+    """The coefficients of Eq. (45) as printed, in the units of the column given: the
+    stiffness per mass ``K_m`` = K/m [1/time²] (0: transport only), the radius ``r``
+    [length], the restitution ``e``, the centre ``b`` and width ``c`` [length] of the
+    Gaussian Θ (Eq. 44), gravity ``g`` [length/time²]."""
+
+    K_m: float
+    r: float
+    e: float
+    b: float
+    c: float
+    g: float
+
+
 @njit
-def _bsr_force(u, u_bottom, dz, H, z_cell, K_m, h, r, e, b, c, g, phi, out):
+def _bsr_force(u, u_bottom, z_cell, dz, H, eq45, phi, out):
     """Source of Eq. (45) at cell centres: −g − (K/m) ∫Θ[1 − eσ(Δu)](2r − |y|)dy.
 
     The integral is the trapezoid rule on the nodes y = kΔz, |k| ≤ H = h/Δz; u beyond the
     bottom is the floor's velocity, beyond the top the last cell's. Zero elastic force
     above the free top φ.
+
+    u, out : (n,) velocities [length/time] and sources [length/time²] at the cell centres
+    ``z_cell`` (n,) [length], cells of width ``dz``; ``u_bottom`` the floor's velocity;
+    eq45 : PrintedKernel; phi : height of the free top [length] (inf: none).
     """
+    K_m, r, e, b, c, g = eq45
     n = u.size
     norm = 1.0 / (c * math.sqrt(2.0 * math.pi))
     for i in range(n):
@@ -603,26 +694,29 @@ def _burgers_rate(u, u_bottom, dz, out):
         out[i] = -(flux[i + 1] - flux[i]) / dz
 
 
+@njit
+def _momentum_rates(u, u_bottom, z_cell, dz, H, eq45, phi, adv, src):
+    """The two terms of u_t in Eq. (45) in one call: the transport −∂z(u²/2) into ``adv``
+    (:func:`_burgers_rate`) and the source into ``src`` (:func:`_bsr_force`), both (n,)
+    [length/time²]; arguments as there."""
+    _burgers_rate(u, u_bottom, dz, adv)
+    _bsr_force(u, u_bottom, z_cell, dz, H, eq45, phi, src)
+
+
 def bsr_kernel_force(p: ColumnParams, z_cell, u, dz, u_bottom=0.0, phi=np.inf, b=None, c=None):
     """The right-hand side of Eq. (45) at cell centres (see :func:`_bsr_force`)."""
     H = int(round(p.h / dz))
     out = np.empty_like(np.asarray(u, dtype=np.float64))
-    _bsr_force(
-        np.asarray(u, dtype=np.float64),
-        u_bottom,
-        dz,
-        H,
-        np.asarray(z_cell, float),
+    eq45 = PrintedKernel(
         p.K / p.m,
-        p.h,
         p.r,
         p.e,
-        7 * p.h if b is None else b,
-        3 * p.h if c is None else c,
+        float(7 * p.h if b is None else b),
+        float(3 * p.h if c is None else c),
         p.g,
-        phi,
-        out,
     )
+    u = np.asarray(u, dtype=np.float64)
+    _bsr_force(u, float(u_bottom), np.asarray(z_cell, float), dz, H, eq45, float(phi), out)
     return out
 
 
@@ -677,6 +771,7 @@ def solve_bsr(
     if kernel not in ("printed", "none"):
         raise ValueError(f"BSR: kernel must be printed or none, got {kernel!r}")
     b, c = 7 * p.h, 3 * p.h
+    eq45 = PrintedKernel(p.K / p.m if kernel == "printed" else 0.0, p.r, p.e, b, c, p.g)
     u = np.zeros(n) if exact is None else np.array(exact(zc, 0.0), dtype=np.float64)
     rho = np.where(zc < S, p.m / (2 * p.r), 0.0)
     phi = _TopBoundary(top, S)
@@ -701,9 +796,7 @@ def solve_bsr(
 
     def rate(t, uu, rr, seg):
         ub, _ = bottom(t, seg)
-        _burgers_rate(uu, ub, dz, adv)
-        K_m = p.K / p.m if kernel == "printed" else 0.0
-        _bsr_force(uu, ub, dz, H, zc, K_m, p.h, p.r, p.e, b, c, p.g, phi(t), src)
+        _momentum_rates(uu, ub, zc, dz, H, eq45, phi(t), adv, src)
         du = adv + src
         if forcing is not None:
             du = du + np.asarray(forcing(zc, t), dtype=np.float64)
@@ -872,36 +965,70 @@ def _bsr_accel(y, v, yg, vg, W, ds, G, e, w_sigma, first_pinned, out):
         out[i] = a
 
 
-@njit
-def _bsr_set_bounds(t, y, v, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin, top_t,
-                    top_y, top_v):  # fmt: skip
-    """Ghosts ride with the floor; pinned points (hybrid top) with the discrete top."""
-    y0, v0, _ = _floor_at(t, A, Om, ts, in_tap)
+class DerivedBsr(NamedTuple):
+    """The derived BSR on its material points, chain units: the bond weights ``W`` (nb,)
+    of the label offsets Δ_j = j ``ds`` [h] (:func:`bsr_bond_weights`), gravity ``G`` =
+    mg/(Kh), restitution ``e``, the width ``w_sigma`` of σ(W) = tanh(W/w_σ)
+    [h sqrt(K/m)]; the points from ``first_pinned`` on (the hybrid top's; M for a free
+    top) sit at the heights ``pinned`` (M − first_pinned,) [h] above the discrete top
+    particle's centre."""
+
+    W: np.ndarray
+    ds: float
+    G: float
+    e: float
+    w_sigma: float
+    first_pinned: int
+    pinned: np.ndarray
+
+
+class FloorGhosts(NamedTuple):
+    """The floor's ghost material, ghost g at label −(g + ½) ds, chain units: its heights
+    ``rest`` (ng,) [h] above the floor at rest, and its current heights ``y`` and
+    velocities ``v`` (ng,) [h, h sqrt(K/m)], set by :func:`_bsr_set_bounds`."""
+
+    rest: np.ndarray
+    y: np.ndarray
+    v: np.ndarray
+
+
+@njit_inline
+def _bsr_set_bounds(t, y, v, bsr, ghosts, drive, tap_start, in_tap, top):
+    """Ghosts ride with the floor; pinned points (hybrid top) with the discrete top.
+
+    y, v : (M,) the material points' heights and velocities, the pinned ones set at time
+    t; bsr : DerivedBsr; ghosts : FloorGhosts (``y``, ``v`` set); drive : FloorDrive in
+    the tap that starts at ``tap_start`` (``in_tap``) or between taps; top : DiscreteTop.
+    """
+    y0, v0, _ = _floor_at(t, drive, tap_start, in_tap)
+    yg, vg, Yg = ghosts.y, ghosts.v, ghosts.rest
     for g in range(yg.size):
         yg[g] = y0 + Yg[g]
         vg[g] = v0
+    first_pinned = bsr.first_pinned
     if first_pinned < y.size:
-        yt = np.interp(t, top_t, top_y)
-        vt = np.interp(t, top_t, top_v)
+        yt = np.interp(t, top.t, top.y)
+        vt = np.interp(t, top.t, top.v)
         for i in range(first_pinned, y.size):
-            y[i] = yt + Ypin[i - first_pinned]
+            y[i] = yt + bsr.pinned[i - first_pinned]
             v[i] = vt
 
 
 @njit
-def _bsr_run(
-    Y, V, Yg, W, ds, G, e, w_sigma, A, Om, T, dur, t_end, rec_t, first_pinned, Ypin,
-    top_t, top_y, top_v, cfl, out_y,
-):  # fmt: skip
+def _bsr_run(Y, V, bsr, ghosts, drive, top, t_end, cfl, rec_t, out_y):
     """RK4 of :func:`_bsr_accel`, steps ending at the floor's switches and the records.
 
     The step follows the fastest linear rates, which do not depend on ds: the elastic
     frequency ω² ≤ 4 Σ W_j/Δ_j and the rate 2 e c_max/w_σ Σ W_j/Δ_j of the viscosity the
-    smooth σ implies. Returns (records written, status: 0 ok, 1 blow-up, time).
+    smooth σ implies.
+
+    Y, V : (M,) the state, advanced in place; bsr : DerivedBsr; ghosts : FloorGhosts;
+    drive : FloorDrive; top : DiscreteTop (used if ``bsr.first_pinned`` < M);
+    t_end [sqrt(m/K)]; cfl : step factor; rec_t : (n_rec,) record times; out_y :
+    (n_rec, M) recorded heights, filled. Returns (records written, status: 0 ok,
+    1 blow-up, time).
     """
     M = Y.size
-    yg = np.empty(Yg.size)
-    vg = np.empty(Yg.size)
     k1 = np.empty(M)
     k2 = np.empty(M)
     k3 = np.empty(M)
@@ -910,19 +1037,21 @@ def _bsr_run(
     v1 = np.empty(M)
     v2 = np.empty(M)
     v3 = np.empty(M)
+    W, ds, e, w_sigma = bsr.W, bsr.ds, bsr.e, bsr.w_sigma
+    # the bundles' fields read once, outside the steps: read per call the run measured 2 % slower
+    yg, vg, G, first_pinned = ghosts.y, ghosts.v, bsr.G, bsr.first_pinned
     s2 = 0.0
     for j in range(W.size):
         s2 += W[j] / ((j + 1) * ds)
     wave = math.sqrt(4.0 * s2)
-    vmax0 = 1.0 + A * Om
+    vmax0 = 1.0 + drive.a * drive.omega
     nrec = rec_t.size
     i_rec = 0
     t = 0.0
     eps = 1e-12 * max(1.0, t_end)
     while True:
-        ts, in_tap, seg_end = _drive_segment(t, T, dur, A, eps)
-        _bsr_set_bounds(t, Y, V, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin, top_t,
-                        top_y, top_v)  # fmt: skip
+        ts, in_tap, seg_end = _drive_segment(t, drive, eps)
+        _bsr_set_bounds(t, Y, V, bsr, ghosts, drive, ts, in_tap, top)
         while i_rec < nrec and rec_t[i_rec] <= t + eps:
             out_y[i_rec] = Y
             i_rec += 1
@@ -932,25 +1061,21 @@ def _bsr_run(
         while stop - t > eps:
             cmax = _max_compression(Y, ds)
             hs = min(stop - t, cfl / (wave + 2.0 * e * cmax * s2 / w_sigma))
-            _bsr_set_bounds(t, Y, V, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
-                            top_t, top_y, top_v)  # fmt: skip
+            _bsr_set_bounds(t, Y, V, bsr, ghosts, drive, ts, in_tap, top)
             _bsr_accel(Y, V, yg, vg, W, ds, G, e, w_sigma, first_pinned, k1)
             th = t + 0.5 * hs
             rk4_stage(Y, V, 0.5 * hs, Ys)
             rk4_stage(V, k1, 0.5 * hs, v1)
-            _bsr_set_bounds(th, Ys, v1, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
-                            top_t, top_y, top_v)  # fmt: skip
+            _bsr_set_bounds(th, Ys, v1, bsr, ghosts, drive, ts, in_tap, top)
             _bsr_accel(Ys, v1, yg, vg, W, ds, G, e, w_sigma, first_pinned, k2)
             rk4_stage(Y, v1, 0.5 * hs, Ys)
             rk4_stage(V, k2, 0.5 * hs, v2)
-            _bsr_set_bounds(th, Ys, v2, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
-                            top_t, top_y, top_v)  # fmt: skip
+            _bsr_set_bounds(th, Ys, v2, bsr, ghosts, drive, ts, in_tap, top)
             _bsr_accel(Ys, v2, yg, vg, W, ds, G, e, w_sigma, first_pinned, k3)
             rk4_stage(Y, v2, hs, Ys)
             rk4_stage(V, k3, hs, v3)
             t1 = t + hs
-            _bsr_set_bounds(t1, Ys, v3, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
-                            top_t, top_y, top_v)  # fmt: skip
+            _bsr_set_bounds(t1, Ys, v3, bsr, ghosts, drive, ts, in_tap, top)
             _bsr_accel(Ys, v3, yg, vg, W, ds, G, e, w_sigma, first_pinned, k4)
             rk4_combine(Y, V, v1, v2, v3, hs, Y)
             rk4_combine(V, k1, k2, k3, k4, hs, V)
@@ -961,8 +1086,7 @@ def _bsr_run(
             t = t1
             if bad:
                 return i_rec, 1, t
-            _bsr_set_bounds(t, Y, V, yg, vg, Yg, A, Om, ts, in_tap, first_pinned, Ypin,
-                            top_t, top_y, top_v)  # fmt: skip
+            _bsr_set_bounds(t, Y, V, bsr, ghosts, drive, ts, in_tap, top)
 
 
 def bsr_rest_state(q: ColumnParams, s, W, ds, first_pinned=None, sigma_width=0.01):
@@ -1072,13 +1196,16 @@ def solve_bsr_derived(
         top_v = np.asarray(top[2], dtype=np.float64)
     else:
         top_t, top_y, top_v = np.array([0.0, 1.0]), np.zeros(2), np.zeros(2)
+    top_a = np.zeros(top_t.size)  # the pinned points follow positions: no acceleration read
     record_dt = record_dt or 0.01 * q.T
     rec_t = np.arange(int(math.floor(t_end / record_dt + 1e-9)) + 1) * record_dt
     out_y = np.full((rec_t.size, M), np.nan)
+    bsr = DerivedBsr(W, ds, q.g, q.e, float(sigma_width), first_pinned, Ypin)
+    ghosts = FloorGhosts(Yg, np.empty(Yg.size), np.empty(Yg.size))
+    top_track = DiscreteTop(top_t, top_y, top_v, top_a)
     n, status, t_bad = _bsr_run(
-        Y, V, Yg, W, ds, q.g, q.e, float(sigma_width), q.a, q.omega, q.T, q.tap_duration,
-        float(t_end), rec_t, first_pinned, Ypin, top_t, top_y, top_v, float(cfl), out_y,
-    )  # fmt: skip
+        Y, V, bsr, ghosts, floor_drive(q), top_track, float(t_end), float(cfl), rec_t, out_y
+    )
     if status:
         from ..errors import SimulationError
 
