@@ -309,6 +309,39 @@ def test_each_replica_as_a_point_of_the_barrier_fit():
         fits.slip_fits(table, {}, {**FITS, "slip_replicas": "median"})
 
 
+def test_the_crystals_regions_split_at_its_convection_onset():
+    """``crystal_regions: convection`` moves A2/B from the second T_g* break (K_m 6 here)
+    to the crystal's Eq. (B2) onset (Γ 2.7, K_m 7.29): B loses the points between, A2
+    gains them; an onset at the break gives the temperature reading's fits; no onset on
+    the grid refuses A2 and B, saying why."""
+    table = _table(4)
+    key = ("crystal", 40, Walls(0.6, "shaken", "lever"))
+    base = {**FITS, "slip_weights": "unweighted"}
+    tf = fits.temperature_fits(table, base, DETECTION)
+    ths = fits.thresholds_table(table, DETECTION)
+    onsets = fits.convection_onsets(ths)
+    assert onsets[key] == pytest.approx(2.7**2, rel=1e-9)
+    temp = fits.slip_fits(table, tf, base)[key]
+    conv = fits.slip_fits(table, tf, {**base, "crystal_regions": "convection"}, onsets)[key]
+    between = (
+        (table["init"] == "crystal")
+        & (table["N_l"] == 40)
+        & (table["K_m"] > tf[key]["breakpoints_K_m"][1])
+        & (table["K_m"] < onsets[key])
+    )
+    assert between.sum() > 0
+    assert conv["B"].n_points == temp["B"].n_points - between.sum()
+    assert conv["A2"].n_points == temp["A2"].n_points + between.sum()
+    assert conv["all"].E_b == temp["all"].E_b
+    at_break = {key: float(tf[key]["breakpoints_K_m"][1])}
+    same = fits.slip_fits(table, tf, {**base, "crystal_regions": "convection"}, at_break)[key]
+    assert same["A2"].E_b == pytest.approx(temp["A2"].E_b, rel=1e-12)
+    none = fits.slip_fits(table, tf, {**base, "crystal_regions": "convection"}, {})[key]
+    assert math.isnan(none["A2"].E_b) and "onset" in none["B"].note
+    with pytest.raises(ValueError, match="crystal_regions"):
+        fits.slip_fits(table, tf, {**base, "crystal_regions": "slips"})
+
+
 def test_wall_settings_are_separate_groups():
     a, b = _table(6, mu_w=0.6), _table(7, mu_w=0.0)
     c = _table(8, mu_w=0.6, side_walls="still")

@@ -598,11 +598,41 @@ def _slip_data(g: pd.DataFrame, each: bool) -> tuple[np.ndarray, dict]:
     return np.repeat(g["K_m"].to_numpy(), n), cols
 
 
-def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
+CRYSTAL_REGIONS = ("temperature", "convection")
+"""Where the crystal's region A2 ends and B begins in the barrier fits
+(``fits.crystal_regions``): at the second T_g* break (Fig. 5's dashed lines are "the
+regions defined in Fig. 4"), or at the crystal's convection onset by Eq. (B2) (the paper
+has B begin "upon the onset of convection"); the two coincide in the paper, not
+necessarily here. A1 ends at the first T_g* break either way."""
+
+
+def _onset_bounds(bounds: np.ndarray, k_onset: float | None) -> np.ndarray:
+    """The crystal's region bounds in K_m with A2/B moved to the convection onset."""
+    if k_onset is None or not math.isfinite(k_onset):
+        raise ValueError("the crystal's convection onset is not on the grid: A2 and B "
+                         "cannot be split there (fits.crystal_regions: convection)")  # fmt: skip
+    if k_onset <= bounds[0]:
+        raise ValueError(f"the crystal's convection onset K_m = {k_onset:.3g} lies below its "
+                         f"first T_g* break {bounds[0]:.3g}")  # fmt: skip
+    return np.array([bounds[0], k_onset])
+
+
+def convection_onsets(ths: pd.DataFrame) -> dict:
+    """(init, N_l, walls) -> K_m of the convection onset by Eq. (B2) over the whole
+    record (NaN where the grid does not bracket it), from :func:`thresholds_table`."""
+    rows = ths[ths["criterion"] == "convection"]
+    return {(r.init, int(r.N_l), _walls_of(r)): float(r.K_m) for r in rows.itertuples()}
+
+
+def slip_fits(
+    table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping, onsets: Mapping | None = None
+) -> dict:
     """Arrhenius fits per group: {(init, N_l, walls): {region: ArrheniusFit}} incl. "all",
     in the reading of ``fits.slip_weights`` (:data:`SLIP_WEIGHTS`) and, under
     ``<region>_<other reading>``, the other; the fitted points are those of
-    ``fits.slip_replicas`` (:data:`SLIP_REPLICAS`)."""
+    ``fits.slip_replicas`` (:data:`SLIP_REPLICAS`), the crystal's regions those of
+    ``fits.crystal_regions`` (:data:`CRYSTAL_REGIONS`; ``onsets`` from
+    :func:`convection_onsets` for the reading ``convection``)."""
     level = float(fits_cfg["confidence"])
     main = str(fits_cfg.get("slip_weights", "unweighted"))
     if main not in SLIP_WEIGHTS:
@@ -611,6 +641,10 @@ def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
     each = str(fits_cfg.get("slip_replicas", "pooled"))
     if each not in SLIP_REPLICAS:
         raise ValueError(f"slip_replicas must be one of {SLIP_REPLICAS}, not {each!r}")
+    regions = str(fits_cfg.get("crystal_regions", "temperature"))
+    if regions not in CRYSTAL_REGIONS:
+        raise ValueError(f"crystal_regions must be one of {CRYSTAL_REGIONS}, not {regions!r}")
+    by_onset = regions == "convection"
     out = {}
     for init, n_l, walls, g in _groups(table):
         K, kw = _slip_data(g, each == "each")
@@ -638,9 +672,10 @@ def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
             try:
                 if "fit" not in tf:
                     raise ValueError(f"no temperature fit to split the regions: {tf['error']}")
-                by = regression.arrhenius_by_region(
-                    K, tf["breakpoints_K_m"], tf["regions"], level=level, **args
-                )
+                bounds = tf["breakpoints_K_m"]
+                if init == "crystal" and by_onset and len(bounds) == 2:
+                    bounds = _onset_bounds(bounds, (onsets or {}).get((init, n_l, walls)))
+                by = regression.arrhenius_by_region(K, bounds, tf["regions"], level=level, **args)
             except ValueError as exc:
                 by = {r: regression.ArrheniusFit.refused(level, str(exc)) for r in tf["regions"]}
             fits.update({f"{r}{suffix}": f for r, f in by.items()})
@@ -650,7 +685,7 @@ def slip_fits(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
                  if f"{c}{r}_flight" in table.columns]  # fmt: skip
         flight = table.assign(**{c: table[f"{c}_flight"] for c in names})
         flight = flight.drop(columns=[f"{c}_flight" for c in names])
-        for key, fl in slip_fits(flight, tfits, fits_cfg).items():
+        for key, fl in slip_fits(flight, tfits, fits_cfg, onsets).items():
             out.setdefault(key, {}).update({f"{r}_flight": f for r, f in fl.items()})
     return out
 

@@ -524,7 +524,7 @@ def fits_stage(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         tfits = fits.temperature_fits(table, params["fits"], params["detection"])
-        sfits = fits.slip_fits(table, tfits, params["fits"])
+        sfits = fits.slip_fits(table, tfits, params["fits"], fits.convection_onsets(ths))
     datasets = fits.fits_datasets(table, ths, tfits, sfits)
     written = []
     for name, ds in datasets.items():
