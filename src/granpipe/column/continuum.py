@@ -389,6 +389,17 @@ def _next_stop(seg_end, t_end, rec_t, i_rec):
     return stop
 
 
+@njit_inline
+def _blown_up(Y, V, vmax0):
+    """True if a position is not finite or a speed exceeds 1000 × the initial largest
+    speed ``vmax0`` (the explicit step has lost stability)."""
+    bad = False
+    for j in range(Y.size):
+        if not (math.isfinite(Y[j]) and abs(V[j]) < 1e3 * vmax0):
+            bad = True
+    return bad
+
+
 @njit
 def _max_compression(Y, spacing):
     """Largest compression 1 − (Y[j+1] − Y[j])/spacing of neighbouring nodes (≥ 0)."""
@@ -470,12 +481,8 @@ def _lw_run(Y, V, lw, drive, top, t_end, cfl, rec_t, out_y, out_v):
             _lw_accel(Ys, v3, lw, a0, at, work, k4)
             rk4_combine(Y, V, v1, v2, v3, hs, Y)
             rk4_combine(V, k1, k2, k3, k4, hs, V)
-            bad = False
-            for j in range(n):
-                if not (math.isfinite(Y[j]) and abs(V[j]) < 1e3 * vmax0):
-                    bad = True
             t = t1
-            if bad:
+            if _blown_up(Y, V, vmax0):
                 return i_rec, 1, t
             _lw_set_ends(t, Y, V, drive, ts, in_tap, hybrid, top)
 
@@ -1079,12 +1086,8 @@ def _bsr_run(Y, V, bsr, ghosts, drive, top, t_end, cfl, rec_t, out_y):
             _bsr_accel(Ys, v3, yg, vg, W, ds, G, e, w_sigma, first_pinned, k4)
             rk4_combine(Y, V, v1, v2, v3, hs, Y)
             rk4_combine(V, k1, k2, k3, k4, hs, V)
-            bad = False
-            for i in range(M):
-                if not (math.isfinite(Y[i]) and abs(V[i]) < 1e3 * vmax0):
-                    bad = True
             t = t1
-            if bad:
+            if _blown_up(Y, V, vmax0):
                 return i_rec, 1, t
             _bsr_set_bounds(t, Y, V, bsr, ghosts, drive, ts, in_tap, top)
 
