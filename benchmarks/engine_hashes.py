@@ -18,6 +18,8 @@ from granpipe.drum.model import DrumModel
 from granpipe.drum.preparation import prepare
 from granpipe.drum.protocol import initial_tangent, replica_streams, tiny_section
 
+# the small box of the tests (tests/box/conftest.py), written out so that the hashes stay
+# those of this exact box when the tests' box changes
 BOX_PHYSICS = {
     "Lx": 6.0,
     "kappa_n": 1.0e6,
