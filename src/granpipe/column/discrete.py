@@ -678,7 +678,7 @@ def _at_rest(v, modes):
     return True
 
 
-@njit
+@njit_inline
 def _is_late(G0, j, md, par, vscale):
     """True if an event function of particle j (mode md) is below −LATE_TOL × its scale.
 
