@@ -77,8 +77,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .._jit import njit
-from .discrete import njit_inline, rk4_combine, rk4_stage
+from .._jit import njit, njit_inline
+from .discrete import rk4_combine, rk4_stage
 from .model import ColumnParams
 
 __all__ = [

@@ -57,14 +57,9 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-import numba
 import numpy as np
 
-from .._jit import JIT_OPTIONS, njit
-
-# small helpers called every RK4 step (the phases of _advance, the RK4 stages), inlined by
-# numba into their callers (measured: as plain calls the column ran 5 to 25 % slower)
-njit_inline = numba.njit(inline="always", **JIT_OPTIONS)
+from .._jit import njit, njit_inline
 
 __all__ = [
     "OPEN",

@@ -58,12 +58,11 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-import numba
 import numpy as np
 from numba import types
 from numba.extending import overload
 
-from granpipe._jit import JIT_OPTIONS, njit
+from granpipe._jit import JIT_OPTIONS, njit, njit_inline
 from granpipe.engine import layout as L
 from granpipe.engine import simd
 from granpipe.engine import walls as W
@@ -307,7 +306,7 @@ def _compact_pair(law, mode, p, v, tr, tv, w, tw, pair_ij, pair_c, pair_xi, pair
 # Inlined in numba's IR: as plain calls they left 150 calls in law_rows' machine code against
 # the alias block's 96, and the drum with tangent ran 1-4 %, the driven box 3-5 % slower
 # (docs/engine_performance.md, round 13).
-@numba.njit(inline="always", **JIT_OPTIONS)
+@njit_inline
 def _in_rows(buf):
     """The buffer's rows the gather writes, as views: ``(dx, dy, dvx, dvy, ex, ey, evx,
     evy, wi, wj, dwi, dwj)`` (:mod:`granpipe.engine.layout`, ``B_DX`` .. ``B_DWJ``)."""
@@ -318,7 +317,7 @@ def _in_rows(buf):
 
 
 # Inlined for the same reason as _in_rows.
-@numba.njit(inline="always", **JIT_OPTIONS)
+@njit_inline
 def _out_rows(buf):
     """The buffer's rows the law writes, as views: ``(fx, fy, ti, tj, gx, gy, gti, gtj)``
     (``B_FX`` .. ``B_GTJ``)."""
