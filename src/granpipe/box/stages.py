@@ -442,10 +442,12 @@ def figure_reading(points, fits_cfg: Mapping, figure: int) -> str:
     weights = fits_cfg.get("slip_weights", "unweighted")
     labels = fits_cfg.get("crystal_points", "initialisation")
     each = fits_cfg.get("slip_replicas", "pooled")
+    regions = fits_cfg.get("crystal_regions", "temperature")
     return (
         f"{record}; slips between cycle starts; Arrhenius fits {weights} "
         f"(fits.slip_weights) over replicas {each} (fits.slip_replicas), crystal points "
-        f"by {labels} (fits.crystal_points)"
+        f"by {labels} (fits.crystal_points), its A2/B split at the {regions} reading "
+        "(fits.crystal_regions)"
     )
 
 
@@ -660,14 +662,13 @@ def figures_stage(
         points, slips, temp, n_fit, reading=figure_reading(points, fcfg, 5)
     )
     written += save_figure(fig5, Path(out_dir) / layout.FIGURES[5])
+    paper_onset = math.sqrt(PAPER["K_m_break_random"])
     paper_lines = {
         "paper: bouncing just above Γ = 1": PAPER["Gamma_bouncing"],
-        "paper: random-start convection, K_m ≈ 3.3": math.sqrt(PAPER["K_m_break_random"]),
+        "paper: random-start convection, K_m ≈ 3.3": paper_onset,
     }
     written += save_figure(figs.fig6_walls(all_ths, paper_lines), Path(out_dir) / layout.FIGURES[6])
-    fig7 = figs.fig7_onset_record(
-        points, ths, math.sqrt(PAPER["K_m_break_random"]), reading=figure_reading(points, fcfg, 7)
-    )
+    fig7 = figs.fig7_onset_record(points, ths, paper_onset, reading=figure_reading(points, fcfg, 7))
     written += save_figure(fig7, Path(out_dir) / layout.FIGURES[7])
     if log:
         log("figures: " + ", ".join(str(p) for p in written))

@@ -466,6 +466,7 @@ def fig7_onset_record(
     _reading(fig, reading)
     colors = _nl_colors(points["N_l"])
     styles = {"convection": ("-", "s"), "rolls": ("--", "D")}
+    roll_level = table[table["reading"] == "rolls"]["level"].dropna()
     for j, init in enumerate(inits):
         top, bottom = axes[0][j], axes[1][j]
         for (n_l, rd), g in table[table["init"] == init].groupby(["N_l", "reading"]):
@@ -489,9 +490,8 @@ def fig7_onset_record(
             g = g.sort_values("Gamma")
             bottom.plot(g["Gamma"], g["roll_significance"], "o-", ms=3, lw=1,
                         color=colors[int(n_l)], label=f"N_l = {int(n_l)}")  # fmt: skip
-        rolls = table[table["reading"] == "rolls"]["level"].dropna()
-        if len(rolls):
-            bottom.axhline(float(rolls.iloc[0]), color="0.4", lw=0.8, ls=":")
+        if len(roll_level):
+            bottom.axhline(float(roll_level.iloc[0]), color="0.4", lw=0.8, ls=":")
         bottom.set_xlabel(r"$\Gamma$")
         bottom.set_ylabel(f"roll score over {full} periods")
         bottom.legend(fontsize=6)
