@@ -78,7 +78,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .._jit import njit, njit_inline
-from .discrete import rk4_combine, rk4_stage
+from .discrete import floor_motion, rk4_combine, rk4_stage
 from .model import ColumnParams
 
 __all__ = [
@@ -350,12 +350,8 @@ def _lw_accel(Y, V, lw, a_bottom, a_top, work, out):
 @njit_inline
 def _floor_at(t, drive, tap_start, in_tap):
     """y0, ẏ0, ÿ0 of the :class:`FloorDrive` at time t, in the tap that starts at
-    ``tap_start`` (``in_tap``) or between taps."""
-    if in_tap:
-        A, Om = drive.a, drive.omega
-        s = Om * (t - tap_start)
-        return A * math.sin(s), A * Om * math.cos(s), -A * Om * Om * math.sin(s)
-    return 0.0, 0.0, 0.0
+    ``tap_start`` (``in_tap``) or between taps (the chain's :func:`floor_motion`)."""
+    return floor_motion(t, tap_start, in_tap, drive.a, drive.omega)
 
 
 @njit_inline
