@@ -55,6 +55,7 @@ SECTION = {
         "detachment_gap": 1.0e-3,
         "detachment_fraction": 0.02,
         "roll_significance": 3.0,
+        "roll_displacement": 1.0,
     },
     "slips": {
         "displacement": 0.2,

@@ -25,6 +25,7 @@ DETECTION = {
     "detachment_gap": 1e-3,
     "detachment_fraction": 0.02,
     "roll_significance": 3.0,
+    "roll_displacement": 1.0,
 }
 # every point in the T_g* fits (the synthetic law holds from Γ = 0.8), weighted barriers
 FITS = {"breakpoints_random": 1, "breakpoints_crystal": 2, "confidence": 0.95,
@@ -89,8 +90,9 @@ def _table(seed, mu_w=0.6, side_walls="shaken"):
                         # at Γ = 1.9 (random) / 2.7 (crystal)
                         "s_b": (1 / 30) * math.exp(4.0 * (g - 1.1)),
                         "s_c": math.exp(2.0 * (g - (1.9 if init == "random" else 2.7))),
-                        # the roll score through 3 at Γ = 2.5
+                        # the roll score through 3 at Γ = 2.5, the centre risen 10 σ
                         "roll_significance": 5.0 * (g - 1.9),
+                        "roll_displacement": 10.0,
                         "detachment_fraction": max(0.0, 0.3 * (g - 1.0)),
                         "T_g": tg * math.exp(0.05 * rng.standard_normal()),
                         "T_g_sem": 0.05 * tg,
@@ -110,7 +112,7 @@ def _table(seed, mu_w=0.6, side_walls="shaken"):
                         "dislocations_end": 0,
                     }
                 )
-    return pd.DataFrame(rows)
+    return fits.roll_levels(pd.DataFrame(rows), DETECTION)
 
 
 def test_thresholds_interpolate_between_bracketing_grid_points():
@@ -129,6 +131,23 @@ def test_thresholds_interpolate_between_bracketing_grid_points():
     assert by[("crystal", 40, "detachment")] == pytest.approx(1.0 + 0.02 / 0.3, abs=1e-9)
     # the roll score 5 (Γ - 1.9) reaches 3 at Γ = 2.5, linear
     assert by[("random", 20, "rolls")] == pytest.approx(2.5, abs=1e-9)
+
+
+def test_the_roll_onset_waits_for_the_bed_to_have_moved():
+    """With the score above 3 everywhere (a steady drift scores so), the roll onset is
+    where the centre's rise reaches ``roll_displacement`` (here 0.5 (Γ - 1) σ: 1 σ at
+    Γ = 3), and at the grid's start under the score alone."""
+    table = _table(0).assign(
+        roll_significance=8.0, roll_displacement=lambda t: 0.5 * (t["Gamma"] - 1)
+    )
+    by = {}
+    for d_min in (1.0, 0.0):
+        det = {**DETECTION, "roll_displacement": d_min}
+        ths = fits.thresholds_table(fits.roll_levels(table, det), det)
+        by[d_min] = ths[(ths["criterion"] == "rolls") & (ths["init"] == "random")
+                        & (ths["N_l"] == 20)].iloc[0]  # fmt: skip
+    assert by[1.0]["Gamma"] == pytest.approx(3.0, abs=1e-9) and by[1.0]["status"] == "crossed"
+    assert by[0.0]["status"] != "crossed" and by[0.0]["Gamma_high"] == pytest.approx(0.8)
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
@@ -498,8 +517,8 @@ def test_the_roll_score_over_the_first_periods_of_each_replica():
     assert fits.rolls_after(c, 32) == pytest.approx(np.sum(scores) / math.sqrt(2))
     assert scores[0] > 10.0 > 3.0 > scores[1]
     assert math.isnan(fits.rolls_after(c, 41))
-    table = _table(3).assign(roll_8=lambda t: 5.0 * (t["Gamma"] - 2.3))
-    ths = fits.thresholds_table(table, DETECTION)
+    table = _table(3).assign(roll_8=lambda t: 5.0 * (t["Gamma"] - 2.3), roll_displacement_8=4.0)
+    ths = fits.thresholds_table(fits.roll_levels(table, DETECTION), DETECTION)
     by = {(r.init, r.N_l, r.criterion): r.Gamma for r in ths.itertuples()}
     assert by[("crystal", 40, "rolls_8periods")] == pytest.approx(2.9, abs=1e-9)
 

@@ -39,6 +39,7 @@ DETECTION = {
     "detachment_gap": 1e-3,
     "detachment_fraction": 0.02,
     "roll_significance": 3.0,
+    "roll_displacement": 1.0,
 }
 SLIPS = {"displacement": 0.2, "min_neighbours": 2, "neighbour_cutoff": 1.2, "surface_depth": 4.0}
 ORDER = {"neighbour_cutoff": 1.2, "threshold": 0.7, "crystal_min_psi6": 0.9}
@@ -526,7 +527,9 @@ def test_diffusion_crosses_eq_b2_later_in_a_shorter_record_and_never_rolls():
         for record in (_diffusing_record(step, 200, seed=k, bounce=2.0), frames):
             c = measures.roll_contrast(record, ROLL_LX)
             for n in (8, 32, 200):
-                assert measures.roll_significance(c, n) < 3.0
+                z = measures.roll_significance(c, n)
+                assert z < 3.0
+                assert measures.roll_level(z, measures.roll_displacement(c, n), DETECTION) < 1
     from granpipe.box.fits import threshold_crossing
 
     onset = {n: threshold_crossing(grid, s_c[n], 1.0, scale="log").value for n in s_c}
@@ -544,9 +547,34 @@ def test_a_roll_gives_both_criteria_and_the_roll_criterion_sooner():
     c = measures.roll_contrast(frames, ROLL_LX)
     assert measures.roll_significance(c, 8) > 3.0 and measures.roll_significance(c) > 10.0
     assert 0.02 < np.nanmean(c[:8]) < 0.08
+    # the centre rises ~0.05 σ per period above the walls: the criterion, which also asks
+    # for a rise of 1 σ, is met once the roll has carried the bed that far
+    level = {n: measures.roll_level(measures.roll_significance(c, n),
+                                    measures.roll_displacement(c, n), DETECTION)
+             for n in (8, 32, 200)}  # fmt: skip
+    assert level[8] < 1.0 < level[32] < level[200]
+    assert measures.roll_displacement(c) == pytest.approx(np.nansum(c))
     # the opposite rolls (up at the walls) give a negative t
     reverse = _roll_record(-0.05, 32, seed=2)
     assert measures.roll_significance(measures.roll_contrast(reverse, ROLL_LX)) < -3.0
+
+
+def test_a_steady_drift_scores_like_a_roll_but_has_not_carried_the_bed():
+    """A packing that creeps regularly (the centre sinking or rising against the walls by
+    1e-4 σ per period, scatter 1e-6 σ: a comoving bed compacting) scores far beyond 3 and
+    is a roll by the score alone (``roll_displacement`` 0), not by the criterion, whose
+    rise of 1 σ it does not reach in 200 periods (0.02 σ); diffusing beds fail both."""
+    rng = np.random.default_rng(3)
+    drift = 1e-4 + rng.normal(0.0, 1e-6, 200)
+    z, rise = measures.roll_significance(drift), measures.roll_displacement(drift)
+    assert z > 30.0 and rise == pytest.approx(0.02, rel=0.01)
+    assert measures.roll_level(z, rise, {**DETECTION, "roll_displacement": 0.0}) > 1.0
+    assert measures.roll_level(z, rise, DETECTION) == pytest.approx(0.02, rel=0.01)
+    for _ in range(20):
+        c = rng.normal(0.0, 0.3, 200)
+        z, rise = measures.roll_significance(c), measures.roll_displacement(c)
+        assert measures.roll_level(z, rise, DETECTION) < 1.0
+    assert math.isnan(measures.roll_displacement(np.full(5, np.nan)))
 
 
 def test_the_roll_score_of_a_bed_without_rolls_is_standard_normal_at_any_record():

@@ -227,7 +227,7 @@ def test_a_grid_of_crystal_starts_only_fits(pipeline, tmp_path):
     # no crystal intact at all: no group to fit, every table still has its columns
     from granpipe.box import fits
 
-    table = fits.points_table(ens).assign(crystal_intact=0)
+    table = fits.points_table(ens, sec["detection"]).assign(crystal_intact=0)
     table["used"] = fits.used_mask(table, "intact")
     ths = fits.thresholds_table(table, sec["detection"])
     assert ths.empty and list(ths.columns) == list(fits.THRESHOLD_COLUMNS)

@@ -52,7 +52,7 @@ from ..analysis import regression
 from ..analysis.summary import summary_row
 from ..io import read_dataset
 from .layout import Walls
-from .measures import combined_score, roll_significance
+from .measures import combined_score, roll_displacement, roll_level, roll_significance
 
 __all__ = [
     "points_table",
@@ -249,7 +249,8 @@ _COLUMNS = (
     "p_s_sem", "n_slips", "n_trials", "psi6_start", "psi6_end", "hexagonal_start",
     "hexagonal_end", "dislocations_start", "dislocations_end", "launch_ratio",
     "convection", "bouncing", "detached", "crystal_intact", "roll_velocity",
-    "roll_significance", "rolls", "psi6_ramp", "dislocations_ramp", "crystal_intact_ramp",
+    "roll_significance", "roll_displacement", "rolls", "psi6_ramp", "dislocations_ramp",
+    "crystal_intact_ramp",
 )  # fmt: skip
 
 #: Per-point rows of the crystal check: summary name -> table column.
@@ -333,6 +334,21 @@ def rolls_after(contrast: np.ndarray, n_periods: int) -> float:
     return combined_score([roll_significance(row, n_periods) for row in c])
 
 
+def roll_displacement_after(contrast: np.ndarray, n_periods: int) -> float:
+    """The centre's rise above the walls (:func:`~granpipe.box.measures.roll_displacement`)
+    over the first ``n_periods`` periods, averaged over the replicas as the point's is
+    [σ]; NaN when the record is shorter.
+
+    Parameters
+    ----------
+    contrast : (replicas, periods) float [σ], c_j of each replica
+    """
+    c = np.atleast_2d(np.asarray(contrast, dtype=np.float64))
+    if n_periods > c.shape[1]:
+        return math.nan
+    return float(np.nanmean([roll_displacement(row, n_periods) for row in c]))
+
+
 def slips_between(p_s_period: np.ndarray, first: int, last: int) -> float:
     """p_s over the measured periods ``first`` … ``last`` − 1 (0 the first measured), all
     replicas pooled as the point's p_s is; NaN when the record is shorter than ``last``.
@@ -349,15 +365,18 @@ def slips_between(p_s_period: np.ndarray, first: int, last: int) -> float:
 
 def points_table(
     files: Sequence[str | Path],
+    detection: Mapping,
     crystal_points: str = "initialisation",
     records: Sequence[int] = (),
     slip_windows: Sequence[Sequence[int]] = (),
 ) -> pd.DataFrame:
     """One row per ensemble file: N_l, N, Gamma, K_m, init, the walls (mu_w, side_walls,
     wall_torque), the measures, the cost and ``used`` (:func:`used_mask` under
-    ``crystal_points``); ``s_c_<n>`` and ``roll_<n>`` for each record length n of
-    ``records`` (:func:`convection_after`, :func:`rolls_after`) and ``p_s_<a>_<b>`` for
-    each window [a, b) of measured periods of ``slip_windows`` (:func:`slips_between`)."""
+    ``crystal_points``); ``s_c_<n>``, ``roll_<n>`` and ``roll_displacement_<n>`` for each
+    record length n of ``records`` (:func:`convection_after`, :func:`rolls_after`,
+    :func:`roll_displacement_after`), ``p_s_<a>_<b>`` for each window [a, b) of measured
+    periods of ``slip_windows`` (:func:`slips_between`), and the roll criterion under
+    ``detection`` over the whole record and each record length (:func:`roll_levels`)."""
     rows = []
     for f in files:
         ds = read_dataset(f)
@@ -384,11 +403,14 @@ def points_table(
         for n in records:
             row[f"s_c_{int(n)}"] = convection_after(ds["s_j"].values, int(n))
             row[f"roll_{int(n)}"] = rolls_after(ds["roll_contrast"].values, int(n))
+            row[f"roll_displacement_{int(n)}"] = roll_displacement_after(
+                ds["roll_contrast"].values, int(n)
+            )
         for a, b in slip_windows:
             row[f"p_s_{int(a)}_{int(b)}"] = slips_between(ds["p_s_period"].values, int(a), int(b))
         row.update(phase_slip_columns(ds))
         rows.append(row)
-    table = pd.DataFrame(rows)
+    table = roll_levels(pd.DataFrame(rows), detection)
     table["used"] = used_mask(table, crystal_points)
     order = ["init", *WALL_COLUMNS, "N_l", "Gamma"]
     return table.sort_values(order, kind="stable").reset_index(drop=True)
@@ -432,8 +454,10 @@ CRITERIA = {
     "bouncing": ("s_b", "bouncing_s_b", "log"),
     "detachment": ("detachment_fraction", "detachment_fraction", "linear"),
     "convection": ("s_c", "convection_s_c", "log"),
-    "rolls": ("roll_significance", "roll_significance", "linear"),
+    "rolls": ("roll_level", None, "linear"),
 }
+"""Onset criteria: (table column, detection key of its level, interpolation scale); the
+rolls' column is :func:`roll_levels`', rolls where it reaches 1 (no key)."""
 
 
 THRESHOLD_COLUMNS = (
@@ -446,18 +470,36 @@ a grid of crystal starts none of which stayed intact)."""
 
 def _criteria(table: pd.DataFrame) -> dict:
     """:data:`CRITERIA` and, for each record length n the table holds (``s_c_<n>``,
-    ``roll_<n>``, not longer than every point's record), ``convection_<n>periods`` and
+    ``roll_level_<n>``, not longer than every point's record), ``convection_<n>periods`` and
     ``rolls_<n>periods``: Eq. (B2) and the roll criterion over the first n cycles (the
     onset as a function of how long one looks)."""
     out = dict(CRITERIA)
     for col in table.columns:
         for prefix, name, key, scale in (
             ("s_c_", "convection", "convection_s_c", "log"),
-            ("roll_", "rolls", "roll_significance", "linear"),
+            ("roll_level_", "rolls", None, "linear"),
         ):
             n = col[len(prefix) :]
             if col.startswith(prefix) and n.isdigit() and table[col].notna().all():
                 out[f"{name}_{n}periods"] = (col, key, scale)
+    return out
+
+
+def roll_levels(table: pd.DataFrame, detection: Mapping) -> pd.DataFrame:
+    """``table`` with ``roll_level`` (over the whole record) and ``roll_level_<n>`` (over
+    the first n periods, for each ``roll_<n>``): the roll criterion
+    (:func:`~granpipe.box.measures.roll_level`) of the score and the centre's rise."""
+    out = table.copy()
+    pairs = [("roll_significance", "roll_displacement", "roll_level")]
+    for col in table.columns:
+        n = col.removeprefix("roll_")
+        if n.isdigit() and f"roll_displacement_{n}" in table:
+            pairs.append((col, f"roll_displacement_{n}", f"roll_level_{n}"))
+    for score, rise, level in pairs:
+        out[level] = [
+            roll_level(z, d, detection)
+            for z, d in zip(table[score].to_numpy(float), table[rise].to_numpy(float), strict=True)
+        ]
     return out
 
 
@@ -468,7 +510,7 @@ def thresholds_table(table: pd.DataFrame, detection: Mapping) -> pd.DataFrame:
     criteria = _criteria(table)
     for init, n_l, walls, g in _groups(table):
         for name, (col, key, scale) in criteria.items():
-            crit = float(detection[key])
+            crit = 1.0 if key is None else float(detection[key])
             values = g[col].to_numpy()
             if scale == "log":
                 # a measure at exactly zero (a rigid bed) sits below any positive criterion

@@ -275,6 +275,38 @@ def roll_significance(contrast: np.ndarray, n_periods: int | None = None) -> flo
     return float(stats.norm.isf(stats.t.sf(c.mean() / se, c.size - 1)))
 
 
+def roll_displacement(contrast: np.ndarray, n_periods: int | None = None) -> float:
+    """How far the bed's centre has risen above its walls over the first ``n_periods``
+    periods (all by default), Σ_j c_j [σ]: the distance a roll has carried the bed.
+
+    A roll's rise grows as the record; a steady drift of the packing (a comoving bed
+    compacting, a crystal creeping) gives a contrast so regular that its score is large
+    while the bed has moved by a small fraction of a disk (measured: 0.01 σ over 200
+    periods at Γ 1.0, docs/box.md). NaN with no finite c_j.
+
+    Parameters
+    ----------
+    contrast : (n_periods,) float [σ], :func:`roll_contrast`
+    """
+    c = np.asarray(contrast, dtype=np.float64)[:n_periods]
+    c = c[np.isfinite(c)]
+    return float(c.sum()) if c.size else math.nan
+
+
+def roll_level(score: float, displacement: float, detection: Mapping) -> float:
+    """The roll criterion as one number, rolls where it is >= 1: the score
+    (:func:`roll_significance`, :func:`combined_score`) over ``detection.roll_significance``
+    and, unless ``detection.roll_displacement`` is 0, the centre's rise
+    (:func:`roll_displacement`) over that many σ, whichever is smaller — a roll must be
+    persistent and have carried the bed. NaN where either is NaN.
+    """
+    level = score / float(detection["roll_significance"])
+    d_min = float(detection["roll_displacement"])
+    if d_min > 0:
+        level = min(level, displacement / d_min)
+    return float(level)
+
+
 def combined_score(scores: Sequence[float]) -> float:
     """The roll score of a point from its replicas' (:func:`roll_significance`): Stouffer's
     Σ z_r / √n over the finite ones, which stays a standard normal variable for beds
@@ -840,6 +872,8 @@ PER_REPLICA: tuple[Measure, ...] = (
             lambda m: _nanmean(m.roll)),
     Measure("roll_significance", "1", "roll score: normal score of the mean contrast against 0",
             lambda m: roll_significance(m.roll), "combined"),
+    Measure("roll_displacement", "sigma", "rise of the bed's centre above its walls, sum of c_j",
+            lambda m: roll_displacement(m.roll)),
     Measure("psi6_ramp", "1", "bulk mean |psi6| when the start-up ramp has ended",
             lambda m: m.ramp_check("psi6")),
     Measure("dislocations_ramp", "1", "bulk disks with other than 6 Delaunay neighbours, ramp end",
@@ -920,9 +954,15 @@ def point_dataset(
             ),  # fmt: skip
             "rolls": _var(
                 (),
-                int(data["roll_significance"][1] > float(detection["roll_significance"])),
+                int(
+                    roll_level(
+                        data["roll_significance"][1], data["roll_displacement"][1], detection
+                    )
+                    >= 1.0
+                ),
                 "1",
-                "roll flag: the roll score exceeds detection.roll_significance",
+                "roll flag: the roll score exceeds detection.roll_significance and the "
+                "centre has risen detection.roll_displacement above the walls",
             ),  # fmt: skip
             "crystal_intact_ramp": _var(
                 (),

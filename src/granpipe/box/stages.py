@@ -519,7 +519,7 @@ def fits_stage(
     _check_inputs(ensemble_files, params["points"], "ensemble", "point", every=True)
     fcfg = params["fits"]
     table = fits.points_table(
-        ensemble_files, fcfg.get("crystal_points", "initialisation"),
+        ensemble_files, params["detection"], fcfg.get("crystal_points", "initialisation"),
         records=fcfg.get("onset_records", ()), slip_windows=fcfg.get("slip_windows", ()),
     )  # fmt: skip
     ths = fits.thresholds_table(table, params["detection"])

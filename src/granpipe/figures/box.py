@@ -445,12 +445,13 @@ def fig7_onset_record(
 ):  # fmt: skip
     """(ours) How long the convection onset looked: the onset in Γ against the record it
     is measured over (top: Eq. (B2)'s s_c and the roll criterion, one line per N_l and
-    start), and the roll score against Γ over the whole record (bottom, its threshold
-    dotted).
+    start), and the roll criterion against Γ over the whole record (bottom: the smaller of
+    the score over its threshold and the centre's rise over its threshold, rolls at 1,
+    dotted; :func:`granpipe.box.fits.roll_levels`).
 
     Parameters
     ----------
-    points : DataFrame with N_l, Gamma, init, roll_significance, measured_periods
+    points : DataFrame with N_l, Gamma, init, roll_level, measured_periods
     thresholds : DataFrame, rows of :func:`granpipe.box.fits.thresholds_table`
     paper_gamma : float, optional, the paper's random-start onset (√3.3 = 1.82)
     reading : str, optional, drawn over the figure
@@ -466,7 +467,6 @@ def fig7_onset_record(
     _reading(fig, reading)
     colors = _nl_colors(points["N_l"])
     styles = {"convection": ("-", "s"), "rolls": ("--", "D")}
-    roll_level = table[table["reading"] == "rolls"]["level"].dropna()
     for j, init in enumerate(inits):
         top, bottom = axes[0][j], axes[1][j]
         for (n_l, rd), g in table[table["init"] == init].groupby(["N_l", "reading"]):
@@ -488,11 +488,10 @@ def fig7_onset_record(
         top.legend(fontsize=6)
         for n_l, g in points[points["init"] == init].groupby("N_l"):
             g = g.sort_values("Gamma")
-            bottom.plot(g["Gamma"], g["roll_significance"], "o-", ms=3, lw=1,
+            bottom.plot(g["Gamma"], g["roll_level"], "o-", ms=3, lw=1,
                         color=colors[int(n_l)], label=f"N_l = {int(n_l)}")  # fmt: skip
-        if len(roll_level):
-            bottom.axhline(float(roll_level.iloc[0]), color="0.4", lw=0.8, ls=":")
+        bottom.axhline(1.0, color="0.4", lw=0.8, ls=":")
         bottom.set_xlabel(r"$\Gamma$")
-        bottom.set_ylabel(f"roll score over {full} periods")
+        bottom.set_ylabel(f"roll criterion over {full} periods")
         bottom.legend(fontsize=6)
     return fig
