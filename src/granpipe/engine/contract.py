@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import inspect
 import math
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 from numba import types
@@ -54,6 +54,8 @@ from granpipe.errors import ConfigError
 
 __all__ = [
     "ContactLaw",
+    "Contact",
+    "Perturbation",
     "pair_force",
     "pair_force_jvp",
     "perturbed_kinematics",
@@ -72,16 +74,18 @@ __all__ = [
 _REGISTRY: dict[str, type] = {}
 
 
-def pair_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
-    """Force of one contact (a generic leaf; each law implements it for its type).
+class Contact(NamedTuple):
+    """One contact as the leaves see it (every field a float).
 
-    Parameters
+    Attributes
     ----------
-    law : the law's parameter type (a NamedTuple)
     nx, ny : float
         Unit normal from j to i.
     delta : float [length]
         ``r - (a_i + a_j)`` (the negative overlap; the contact exists for ``delta <= 0``).
+    curv : float [1/length]
+        ``1/r``, the rate at which the normal turns with the relative position; 0 for a
+        flat wall (its normal does not turn).
     lever_i, lever_j : float [length]
         Distances from the centres to the contact point (``(r + a_i - a_j)/2`` and
         ``(r + a_j - a_i)/2``).
@@ -91,6 +95,43 @@ def pair_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi
         Spins (0 for a law without spin).
     m_eff : float [mass]
         ``m_i m_j / (m_i + m_j)`` (``m_i`` against a wall).
+    """
+
+    nx: float
+    ny: float
+    delta: float
+    curv: float
+    lever_i: float
+    lever_j: float
+    vx: float
+    vy: float
+    w_i: float
+    w_j: float
+    m_eff: float
+
+
+class Perturbation(NamedTuple):
+    """A tangent vector's components at one contact (every field a float): of the
+    relative position ``(ddx, ddy)`` [length], the relative velocity ``(dvx, dvy)``
+    [length/time], both spins [1/time] and the history before the step ``dxi``
+    [length]."""
+
+    ddx: float
+    ddy: float
+    dvx: float
+    dvy: float
+    dw_i: float
+    dw_j: float
+    dxi: float
+
+
+def pair_force(law, c, xi, dt):
+    """Force of one contact (a generic leaf; each law implements it for its type).
+
+    Parameters
+    ----------
+    law : the law's parameter type (a NamedTuple)
+    c : :class:`Contact`
     xi : float [length]
         Shear history along ``t`` before this evaluation (0 for a law without history).
     dt : float [time]
@@ -109,39 +150,27 @@ def pair_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi
     piece : int
         Which smooth piece of the law applied (the law's own codes); passed back to
         :func:`pair_force_jvp`.
-
-    The scalars one by one: the contract's calling convention, the same for every law and
-    compiled into the passes' row loops (docs/engine_performance.md, round 13, bundled the
-    storage arrays only; the leaves' arguments were not bundled nor measured).
     """
     raise NotImplementedError("a generic leaf: implemented per law (numba overload)")
 
 
-def pair_force_jvp(
-    law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
-    ddx, ddy, dvx, dvy, dw_i, dw_j, dxi,
-):  # fmt: skip
+def pair_force_jvp(law, c, f_n, f_t, piece, dt, p):
     """Directional derivative of :func:`pair_force` at the point it was evaluated.
 
-    The forward arguments are those of :func:`pair_force` (``curv = 1/r``, 0 for a flat
-    wall) with its outputs ``f_n, f_t, piece``; the perturbations are of the relative
-    position ``dd``, the relative velocity ``dv``, the spins and the prior history.
-    Exact on each smooth piece.
+    ``c`` and ``dt`` as for :func:`pair_force`, with its outputs ``f_n, f_t, piece``;
+    ``p`` the :class:`Perturbation`. Exact on each smooth piece.
 
     Returns
     -------
     dfx, dfy, dtau_i, dtau_j, dxi_new : float
-
-    The arguments one by one, as :func:`pair_force`'s.
     """
     raise NotImplementedError("a generic leaf: implemented per law (numba overload)")
 
 
 @njit
-def perturbed_kinematics(
-    nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, ddx, ddy, dvx, dvy, dw_i, dw_j
-):  # fmt: skip
-    """The perturbed kinematics of one contact, shared by the Jacobian leaves.
+def perturbed_kinematics(c, p):
+    """The perturbed kinematics of contact ``c`` (:class:`Contact`) under ``p``
+    (:class:`Perturbation`), shared by the Jacobian leaves.
 
     A perturbation ``dd`` of the relative position turns the normal by
     ``psi = curv (t . dd)`` (``dn = psi t``, ``dt = -psi n``; ``curv = 1/r``, 0 for a flat
@@ -153,31 +182,34 @@ def perturbed_kinematics(
     dvn, dvt : float
         Perturbations of the normal relative velocity and of the slip velocity at the
         contact point ``v . t - l_i w_i - l_j w_j``.
-
-    The scalars one by one, as the leaves that call it take them (:func:`pair_force`).
     """
-    psi = curv * (ddy * nx - ddx * ny)
-    dr = ddx * nx + ddy * ny
-    vn = vx * nx + vy * ny
-    ut = vy * nx - vx * ny
-    dvn = dvx * nx + dvy * ny + psi * ut
+    nx, ny = c.nx, c.ny
+    psi = c.curv * (p.ddy * nx - p.ddx * ny)
+    dr = p.ddx * nx + p.ddy * ny
+    vn = c.vx * nx + c.vy * ny
+    ut = c.vy * nx - c.vx * ny
+    dvn = p.dvx * nx + p.dvy * ny + psi * ut
     dlev = 0.5 * dr
-    dvt = dvy * nx - dvx * ny - psi * vn - dlev * (w_i + w_j) - lever_i * dw_i - lever_j * dw_j
+    dvt = (
+        p.dvy * nx - p.dvx * ny - psi * vn - dlev * (c.w_i + c.w_j)
+        - c.lever_i * p.dw_i - c.lever_j * p.dw_j
+    )  # fmt: skip
     return psi, dr, dvn, dvt
 
 
 @njit
-def perturbed_force(nx, ny, psi, dr, f_n, f_t, dfn, dft, lever_i, lever_j):
-    """``(dF_x, dF_y, dtau_i, dtau_j)`` of ``F = f_n n + f_t t``, ``tau = -l f_t`` from the
-    perturbed components ``dfn, dft`` and the frame's turn ``psi`` (lever arms + dr/2)."""
+def perturbed_force(c, psi, dr, f_n, f_t, dfn, dft):
+    """``(dF_x, dF_y, dtau_i, dtau_j)`` of ``F = f_n n + f_t t``, ``tau = -l f_t`` at
+    contact ``c`` from the perturbed components ``dfn, dft`` and the frame's turn ``psi``
+    (lever arms + dr/2)."""
     a = dfn - f_t * psi  # along n
     b = f_n * psi + dft  # along t
     dlev = 0.5 * dr
     return (
-        a * nx - b * ny,
-        a * ny + b * nx,
-        -dlev * f_t - lever_i * dft,
-        -dlev * f_t - lever_j * dft,
+        a * c.nx - b * c.ny,
+        a * c.ny + b * c.nx,
+        -dlev * f_t - c.lever_i * dft,
+        -dlev * f_t - c.lever_j * dft,
     )
 
 
@@ -220,7 +252,7 @@ def law_leaf(generic, params_type):
     with an instance of ``params_type``::
 
         @law_leaf(pair_force, StaticFrictionParams)
-        def _force(law, nx, ny, delta, ...):
+        def _force(law, c, xi, dt):
             ...
     """
 
@@ -323,22 +355,17 @@ class ContactLaw:
         g = _pair_geometry(d, radius_i, radius_j)
         if g is None:
             return np.zeros(5), -1
-        nx, ny, r, delta, lev_i, lev_j = g
         out = evaluate_pair(
-            self.params(), nx, ny, delta, lev_i, lev_j, float(v[0]), float(v[1]),
-            float(spin_i), float(spin_j), float(m_eff), float(xi), float(dt),
-        )  # fmt: skip
+            self.params(), _contact(g, v, spin_i, spin_j, m_eff), float(xi), float(dt)
+        )
         return np.array(out[:5]), int(out[7])
 
     def pair_jacobian(self, d, v, spin_i, spin_j, radius_i, radius_j, m_eff, xi=0.0, dt=0.0):
         """Jacobian (5, 7) of :meth:`pair`'s ``(F_x, F_y, tau_i, tau_j, xi_new)`` with respect
         to ``(d_x, d_y, v_x, v_y, spin_i, spin_j, xi)``, from the law's Jacobian leaf
         (:func:`pair_force_jvp`; exact on the piece the contact is on)."""
-        nx, ny, r, delta, lev_i, lev_j = _pair_geometry(d, radius_i, radius_j)
-        return _jacobian(
-            self.params(), (nx, ny, delta, lev_i, lev_j), 1.0 / r, v, spin_i, spin_j, m_eff,
-            xi, dt,
-        )  # fmt: skip
+        c = _contact(_pair_geometry(d, radius_i, radius_j), v, spin_i, spin_j, m_eff)
+        return _jacobian(self.params(), c, xi, dt)
 
     def wall_pair(self, h, v, spin, radius, mass, normal, xi=0.0, dt=0.0, wall=2):
         """A disk's contact with flat wall ``wall`` (0 left, 1 right, 2 bottom; its
@@ -352,31 +379,46 @@ class ContactLaw:
         """
         if h - radius > 0:
             return np.zeros(3), 0.0, -1
-        n = np.asarray(normal, dtype=np.float64)
-        out = evaluate_pair(
-            self.wall_params()[wall], n[0], n[1], h - radius, radius - 0.5 * (radius - h), 0.0,
-            float(v[0]), float(v[1]), float(spin), 0.0, float(mass), float(xi), float(dt),
-        )  # fmt: skip
+        c = _wall_contact(h, v, spin, radius, mass, normal)
+        out = evaluate_pair(self.wall_params()[wall], c, float(xi), float(dt))
         return np.array([out[0], out[1], out[2]]), out[4], int(out[7])
 
     def wall_pair_jacobian(self, h, v, spin, radius, mass, normal, xi=0.0, dt=0.0, wall=2):
         """Jacobian (5, 7) of the wall contact (:meth:`wall_pair`, outputs ``(F_x, F_y,
         tau, 0, xi_new)``) with respect to the disk's ``(x, y, v_x, v_y, spin)``, the wall's
         spin (unused) and ``xi``."""
-        n = np.asarray(normal, dtype=np.float64)
-        geometry = (n[0], n[1], h - radius, radius - 0.5 * (radius - h), 0.0)
-        return _jacobian(self.wall_params()[wall], geometry, 0.0, v, spin, 0.0, mass, xi, dt)
+        c = _wall_contact(h, v, spin, radius, mass, normal)
+        return _jacobian(self.wall_params()[wall], c, xi, dt)
 
 
-def _jacobian(law, geometry, curv, v, spin_i, spin_j, m_eff, xi, dt):
-    nx, ny, delta, lev_i, lev_j = geometry
-    fwd = (float(v[0]), float(v[1]), float(spin_i), float(spin_j), float(m_eff))
-    out = evaluate_pair(law, nx, ny, delta, lev_i, lev_j, *fwd, float(xi), float(dt))
+def _contact(geometry, v, spin_i, spin_j, m_eff) -> Contact:
+    """The :class:`Contact` of a disk pair from :func:`_pair_geometry`'s output."""
+    nx, ny, r, delta, lev_i, lev_j = geometry
+    return Contact(
+        float(nx), float(ny), float(delta), 1.0 / float(r), float(lev_i), float(lev_j),
+        float(v[0]), float(v[1]), float(spin_i), float(spin_j), float(m_eff),
+    )  # fmt: skip
+
+
+def _wall_contact(h, v, spin, radius, mass, normal) -> Contact:
+    """The :class:`Contact` of a disk at distance ``h`` from a flat wall of unit
+    ``normal``: the wall's side infinitely heavy and not turning (``m_eff`` the disk's
+    mass, lever ``radius - overlap/2``, curvature 0)."""
+    n = np.asarray(normal, dtype=np.float64)
+    return Contact(
+        float(n[0]), float(n[1]), float(h - radius), 0.0, float(radius - 0.5 * (radius - h)),
+        0.0, float(v[0]), float(v[1]), float(spin), 0.0, float(mass),
+    )  # fmt: skip
+
+
+def _jacobian(law, c, xi, dt):
+    """(5, 7) Jacobian of contact ``c``'s outputs, one :func:`pair_force_jvp` per unit
+    :class:`Perturbation`."""
+    out = evaluate_pair(law, c, float(xi), float(dt))
     jac = np.zeros((5, 7))
     for k, e in enumerate(np.eye(7)):
-        jac[:, k] = evaluate_pair_jvp(
-            law, nx, ny, curv, lev_i, lev_j, *fwd, out[5], out[6], out[7], float(dt), *e
-        )
+        p = Perturbation(*(float(x) for x in e))
+        jac[:, k] = evaluate_pair_jvp(law, c, out[5], out[6], out[7], float(dt), p)
     return jac
 
 
@@ -397,21 +439,15 @@ def _pair_geometry(d, radius_i, radius_j):
 
 
 @njit
-def evaluate_pair(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
+def evaluate_pair(law, c, xi, dt):
     """:func:`pair_force` called from Python (tests, studies), with its arguments."""
-    return pair_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt)
+    return pair_force(law, c, xi, dt)
 
 
 @njit
-def evaluate_pair_jvp(
-    law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
-    ddx, ddy, dvx, dvy, dw_i, dw_j, dxi,
-):  # fmt: skip
+def evaluate_pair_jvp(law, c, f_n, f_t, piece, dt, p):
     """:func:`pair_force_jvp` called from Python, with its arguments."""
-    return pair_force_jvp(
-        law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
-        ddx, ddy, dvx, dvy, dw_i, dw_j, dxi,
-    )  # fmt: skip
+    return pair_force_jvp(law, c, f_n, f_t, piece, dt, p)
 
 
 def checked_parameter(name: str, value, allow_zero: bool = True) -> float:

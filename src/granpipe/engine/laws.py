@@ -77,12 +77,12 @@ class BoxParams(NamedTuple):
     mu: float
 
 
-# the signature of contract.pair_force (its scalars one by one: see its docstring)
 @law_leaf(pair_force, DrumParams)
-def _drum_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
-    vn = vx * nx + vy * ny
-    u = vy * nx - vx * ny
-    f_n = -law.k_n * delta - law.gamma_n * vn
+def _drum_force(law, c, xi, dt):
+    nx, ny = c.nx, c.ny
+    vn = c.vx * nx + c.vy * ny
+    u = c.vy * nx - c.vx * ny
+    f_n = -law.k_n * c.delta - law.gamma_n * vn
     cap = law.mu * f_n
     cap = cap if cap > 0.0 else 0.0
     visc = law.gamma_t * abs(u)
@@ -95,19 +95,16 @@ def _drum_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, x
     return fx, fy, 0.0, 0.0, 0.0, f_n, f_t, piece
 
 
-# the signature of contract.pair_force_jvp (its scalars one by one: see pair_force)
 @law_leaf(pair_force_jvp, DrumParams)
-def _drum_jvp(
-    law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
-    ddx, ddy, dvx, dvy, dw_i, dw_j, dxi,
-):  # fmt: skip
+def _drum_jvp(law, c, f_n, f_t, piece, dt, p):
     # n turns by psi = (t . dd)/r: dn = psi t, dt = -psi n.
-    psi = curv * (ddy * nx - ddx * ny)
-    vn = vx * nx + vy * ny
-    u = vy * nx - vx * ny
-    dvn = dvx * nx + dvy * ny + psi * u
-    du = dvy * nx - dvx * ny - psi * vn
-    dfn = -law.k_n * (ddx * nx + ddy * ny) - law.gamma_n * dvn
+    nx, ny = c.nx, c.ny
+    psi = c.curv * (p.ddy * nx - p.ddx * ny)
+    vn = c.vx * nx + c.vy * ny
+    u = c.vy * nx - c.vx * ny
+    dvn = p.dvx * nx + p.dvy * ny + psi * u
+    du = p.dvy * nx - p.dvx * ny - psi * vn
+    dfn = -law.k_n * (p.ddx * nx + p.ddy * ny) - law.gamma_n * dvn
     dcoul = -law.mu * dfn if u > 0.0 else law.mu * dfn
     dft = -law.gamma_t * du if piece == VISCOUS else (dcoul if piece == COULOMB else 0.0)
     a = dfn - f_t * psi  # along n
@@ -115,12 +112,12 @@ def _drum_jvp(
     return a * nx - b * ny, a * ny + b * nx, 0.0, 0.0, 0.0
 
 
-# the signature of contract.pair_force (its scalars one by one: see its docstring)
 @law_leaf(pair_force, BoxParams)
-def _box_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
-    overlap = -delta
-    vn = vx * nx + vy * ny
-    vt = vy * nx - vx * ny - lever_i * w_i - lever_j * w_j
+def _box_force(law, c, xi, dt):
+    nx, ny, m_eff = c.nx, c.ny, c.m_eff
+    overlap = -c.delta
+    vn = c.vx * nx + c.vy * ny
+    vt = c.vy * nx - c.vx * ny - c.lever_i * c.w_i - c.lever_j * c.w_j
     f_n = law.kappa_n * overlap - law.gamma_n * m_eff * vn
     # kappa_t = 0 keeps no elastic shear (1/kappa_t is hoisted out of the pass's loop)
     inv_kt = 1.0 / law.kappa_t if law.kappa_t > 0.0 else 0.0
@@ -129,31 +126,24 @@ def _box_force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi
     )
     fx = f_n * nx - f_t * ny
     fy = f_n * ny + f_t * nx
-    return fx, fy, -lever_i * f_t, -lever_j * f_t, xi_new, f_n, f_t, 1 if slip else 0
+    return fx, fy, -c.lever_i * f_t, -c.lever_j * f_t, xi_new, f_n, f_t, 1 if slip else 0
 
 
-# the signature of contract.pair_force_jvp (its scalars one by one: see pair_force)
 @law_leaf(pair_force_jvp, BoxParams)
-def _box_jvp(
-    law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
-    ddx, ddy, dvx, dvy, dw_i, dw_j, dxi,
-):  # fmt: skip
+def _box_jvp(law, c, f_n, f_t, piece, dt, p):
     # curv = 1/r for a pair (the lever arms move with r: dl_i = dl_j = dr/2), 0 for a
     # flat wall (dl_i = dr/2 with dr = n . dd; lever_j unused: a wall's spin is fixed)
-    psi, dr, dvn, dvt = perturbed_kinematics(
-        nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, ddx, ddy, dvx, dvy, dw_i, dw_j
-    )
+    m_eff = c.m_eff
+    psi, dr, dvn, dvt = perturbed_kinematics(c, p)
     dfn = -law.kappa_n * dr - law.gamma_n * m_eff * dvn
     sgn = 1.0 if f_t > 0.0 else -1.0
     sfn = 1.0 if f_n > 0.0 else -1.0
     inv_kt = 1.0 / law.kappa_t if law.kappa_t > 0.0 else 0.0
     dft, dxi_new = truncated_spring_jvp(
-        law.kappa_t, inv_kt, dxi, dvt, law.gamma_t * m_eff * dvt, sgn * law.mu * sfn * dfn,
+        law.kappa_t, inv_kt, p.dxi, dvt, law.gamma_t * m_eff * dvt, sgn * law.mu * sfn * dfn,
         piece != 1, dt,
     )  # fmt: skip
-    dfx, dfy, dtau_i, dtau_j = perturbed_force(
-        nx, ny, psi, dr, f_n, f_t, dfn, dft, lever_i, lever_j
-    )
+    dfx, dfy, dtau_i, dtau_j = perturbed_force(c, psi, dr, f_n, f_t, dfn, dft)
     return dfx, dfy, dtau_i, dtau_j, dxi_new
 
 

@@ -66,7 +66,14 @@ from granpipe._jit import JIT_OPTIONS, njit, njit_inline
 from granpipe.engine import layout as L
 from granpipe.engine import simd
 from granpipe.engine import walls as W
-from granpipe.engine.contract import law_has_history, law_has_spin, pair_force, pair_force_jvp
+from granpipe.engine.contract import (
+    Contact,
+    Perturbation,
+    law_has_history,
+    law_has_spin,
+    pair_force,
+    pair_force_jvp,
+)
 from granpipe.engine.neighbours import rebuild
 
 __all__ = ["Forward", "Tangent", "FORWARD", "TANGENT", "tangent_on", "replica_of", "gather"]
@@ -371,9 +378,8 @@ def law_rows(law, mode, buf, ssum, slim, smeff, sdiff, xis, dxis, touch, flip, m
         wj = wja[k] if spin else 0.0
         m_eff = smeff[k]
         xi = xis[k] if history else 0.0
-        fx, fy, ti, tj, xi_new, f_n, f_t, piece = pair_force(
-            law, nx, ny, delta, lev_i, lev_j, vx, vy, wi, wj, m_eff, xi, dt
-        )
+        contact = Contact(nx, ny, delta, inv_r, lev_i, lev_j, vx, vy, wi, wj, m_eff)
+        fx, fy, ti, tj, xi_new, f_n, f_t, piece = pair_force(law, contact, xi, dt)
         t = r2 <= s * s
         fxa[k] = fx if t else 0.0
         fya[k] = fy if t else 0.0
@@ -384,11 +390,11 @@ def law_rows(law, mode, buf, ssum, slim, smeff, sdiff, xis, dxis, touch, flip, m
             xis[k] = xi_new if t else 0.0
         c = 1 if t else 0
         if tangent:
-            gx, gy, gti, gtj, dxi_new = pair_force_jvp(
-                law, nx, ny, inv_r, lev_i, lev_j, vx, vy, wi, wj, m_eff, f_n, f_t, piece, dt,
+            e = Perturbation(
                 exa[k], eya[k], evxa[k], evya[k], dwia[k] if spin else 0.0,
                 dwja[k] if spin else 0.0, dxis[k] if history else 0.0,
             )  # fmt: skip
+            gx, gy, gti, gtj, dxi_new = pair_force_jvp(law, contact, f_n, f_t, piece, dt, e)
             gxa[k] = gx if t else 0.0
             gya[k] = gy if t else 0.0
             if spin:
@@ -670,9 +676,8 @@ def flat_walls(walls, law, mode, vec, sca, ivec, fw, zb, vb, dt, count, info, st
             # the wall's parameters by selects: a NamedTuple picked from the tuple by a
             # run-time index cost the box's wall pass 40 %
             law_w = walls[0] if w == 0 else (walls[1] if w == 1 else walls[2])
-            fx, fy, ti, _tj, xi_new, f_n, f_t, piece = pair_force(
-                law_w, nx, ny, -overlap, lev, 0.0, vx, vy, wi, 0.0, m_i, xi, dt
-            )
+            contact = Contact(nx, ny, -overlap, 0.0, lev, 0.0, vx, vy, wi, 0.0, m_i)
+            fx, fy, ti, _tj, xi_new, f_n, f_t, piece = pair_force(law_w, contact, xi, dt)
             frc[i, 0] += fx
             frc[i, 1] += fy
             if spin:
@@ -680,12 +685,13 @@ def flat_walls(walls, law, mode, vec, sca, ivec, fw, zb, vb, dt, count, info, st
             if history:
                 sca[L.XI_LEFT + w, i] = xi_new
             if tangent:
-                dfx, dfy, dti, _dtj, dxi_new = pair_force_jvp(
-                    law_w, nx, ny, 0.0, lev, 0.0, vx, vy, wi, 0.0, m_i, f_n, f_t, piece,
-                    dt, tr[i, 0], tr[i, 1], tv[i, 0], tv[i, 1],
-                    sca[L.T_SPIN, i] if spin else 0.0, 0.0,
-                    sca[L.T_XI_LEFT + w, i] if history else 0.0,
+                e = Perturbation(
+                    tr[i, 0], tr[i, 1], tv[i, 0], tv[i, 1], sca[L.T_SPIN, i] if spin else 0.0,
+                    0.0, sca[L.T_XI_LEFT + w, i] if history else 0.0,
                 )  # fmt: skip
+                dfx, dfy, dti, _dtj, dxi_new = pair_force_jvp(
+                    law_w, contact, f_n, f_t, piece, dt, e
+                )
                 tf[i, 0] += dfx
                 tf[i, 1] += dfy
                 if spin:

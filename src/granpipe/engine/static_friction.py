@@ -71,12 +71,12 @@ class StaticFrictionParams(NamedTuple):
     mu: float
 
 
-# the signature of contract.pair_force (its scalars one by one: see its docstring)
 @law_leaf(pair_force, StaticFrictionParams)
-def _force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt):
-    vn = vx * nx + vy * ny
-    u = vy * nx - vx * ny - lever_i * w_i - lever_j * w_j
-    f_n = -law.k_n * delta - law.gamma_n * vn
+def _force(law, c, xi, dt):
+    nx, ny = c.nx, c.ny
+    vn = c.vx * nx + c.vy * ny
+    u = c.vy * nx - c.vx * ny - c.lever_i * c.w_i - c.lever_j * c.w_j
+    f_n = -law.k_n * c.delta - law.gamma_n * vn
     cap = law.mu * f_n
     cap = cap if cap > 0.0 else 0.0
     # 1/k_t is hoisted out of the pass's loop
@@ -84,26 +84,18 @@ def _force(law, nx, ny, delta, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, xi, dt
     piece = NO_FRICTION if f_n <= 0.0 else (SLIP if slip else STICK)
     fx = f_n * nx - f_t * ny
     fy = f_n * ny + f_t * nx
-    return fx, fy, -lever_i * f_t, -lever_j * f_t, xi_new, f_n, f_t, piece
+    return fx, fy, -c.lever_i * f_t, -c.lever_j * f_t, xi_new, f_n, f_t, piece
 
 
-# the signature of contract.pair_force_jvp (its scalars one by one: see pair_force)
 @law_leaf(pair_force_jvp, StaticFrictionParams)
-def _jvp(
-    law, nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, m_eff, f_n, f_t, piece, dt,
-    ddx, ddy, dvx, dvy, dw_i, dw_j, dxi,
-):  # fmt: skip
-    psi, dr, dvn, du = perturbed_kinematics(
-        nx, ny, curv, lever_i, lever_j, vx, vy, w_i, w_j, ddx, ddy, dvx, dvy, dw_i, dw_j
-    )
+def _jvp(law, c, f_n, f_t, piece, dt, p):
+    psi, dr, dvn, du = perturbed_kinematics(c, p)
     dfn = -law.k_n * dr - law.gamma_n * dvn
     dft_capped = (law.mu * dfn if f_t > 0.0 else -law.mu * dfn) if piece == SLIP else 0.0
     dft, dxi_new = truncated_spring_jvp(
-        law.k_t, 1.0 / law.k_t, dxi, du, law.gamma_t * du, dft_capped, piece == STICK, dt
+        law.k_t, 1.0 / law.k_t, p.dxi, du, law.gamma_t * du, dft_capped, piece == STICK, dt
     )
-    dfx, dfy, dtau_i, dtau_j = perturbed_force(
-        nx, ny, psi, dr, f_n, f_t, dfn, dft, lever_i, lever_j
-    )
+    dfx, dfy, dtau_i, dtau_j = perturbed_force(c, psi, dr, f_n, f_t, dfn, dft)
     return dfx, dfy, dtau_i, dtau_j, dxi_new
 
 
