@@ -223,6 +223,22 @@ def test_fit_edit_plans_only_fits_and_figures(quick):
         assert planned <= knobs.fit_rules, f"{study}: fit edit planned {sorted(planned)}"
 
 
+def test_box_detection_edit_plans_every_ensemble_and_no_simulation(quick):
+    """The ensemble stage's config subset (detection, slips, order) reaches Snakemake's
+    params trigger: an edit of a detection threshold reruns every point's ensemble and the
+    fits and figures after it, and no prepared state or run."""
+    workdir, base = quick
+    if "box" not in studies(base):
+        pytest.skip("the quick scale runs no box")
+    cfg = copy.deepcopy(base)
+    cfg["box"]["detection"]["roll_significance"] = 2.5
+    jobs = planned_jobs(workdir, write_config(workdir, cfg, "detection_edit.yaml"))
+    n_points = len(list((workdir / "results" / "quick" / "box" / "ensemble").glob("*.nc")))
+    assert n_points and jobs.get("box_ensemble") == n_points, jobs
+    assert {"box_fits", "box_figures"} <= set(jobs)
+    assert not {"box_init", "box_runs"} & set(jobs), jobs
+
+
 def test_timestep_edit_plans_simulations_and_downstream(quick):
     workdir, base = quick
     for study in studies(base):

@@ -114,7 +114,9 @@ if "box" in config:
         output:
             out("box", "ensemble", f"{BOX_POINT}.nc"),
         params:
-            json=lambda w, output: as_json(box_layout.ensemble_params(BOX, Path(output[0]).stem)),
+            # from the wildcards, not the output: Snakemake leaves params derived from the
+            # output out of its params trigger, so a detection edit would rerun nothing
+            json=lambda w: as_json(box_layout.ensemble_params(BOX, BOX_POINT.format(**dict(w.items())))),
         conda:
             "../envs/granpipe.yaml"
         log:
@@ -217,7 +219,7 @@ if "box" in config:
             report(out("box", "movie", f"{BOX_POINT}.{BOX['movie']['format']}"),
                    category="box", subcategory="movie", caption="../report/box_movie.rst"),
         params:
-            json=lambda w, output: as_json(box_layout.movie_params(BOX, Path(output[0]).stem)),
+            json=lambda w: as_json(box_layout.movie_params(BOX, BOX_POINT.format(**dict(w.items())))),
         conda:
             "../envs/granpipe.yaml"
         log:
