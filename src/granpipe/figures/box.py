@@ -211,6 +211,18 @@ def _split_broken(g: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
     return g[used], g[~used]
 
 
+def _finish_panel(ax, init: str, inits: list, points: pd.DataFrame, xlabel: str, ylabel: str):
+    """A panel of Figs. 4 and 5: logarithmic p_s or T_g* axis, labels, the start's title
+    ((a) or (b)), its legend and the note on crystals broken before measurement."""
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(f"({'ab'[inits.index(init)]}) {init} start", fontsize=9)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7)
+    _broken_note(ax, points[points["init"] == init])
+
+
 def _broken_note(ax, points: pd.DataFrame) -> None:
     if not points["fitted"].astype(bool).all():
         ax.text(0.98, 0.02, "×: crystal broken before measurement\n(not fitted)",
@@ -269,13 +281,7 @@ def fig4_granular_temperature(
                     ax.text(np.sqrt(lo * hi), 0.04, name, transform=ax.get_xaxis_transform(),
                             ha="center", fontsize=9)  # fmt: skip
         ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel(r"$K_m$")
-        ax.set_ylabel(r"$T_g^* = T_g/(mg\sigma)$")
-        ax.set_title(f"({'ab'[inits.index(init)]}) {init} start", fontsize=9)
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=7)
-        _broken_note(ax, points[points["init"] == init])
+        _finish_panel(ax, init, inits, points, r"$K_m$", r"$T_g^* = T_g/(mg\sigma)$")
     return fig
 
 
@@ -340,13 +346,7 @@ def fig5_slip_probability(
                 labels.append(f"{region}: $E_b$ = {e:.3g} ± {se:.2g}")
             ax.text(0.03, 0.03, "\n".join(labels), transform=ax.transAxes, ha="left",
                     va="bottom", fontsize=7, bbox={"fc": "white", "ec": "0.7"})  # fmt: skip
-        ax.set_yscale("log")
-        ax.set_xlabel(r"$1/K_m$")
-        ax.set_ylabel(r"slip probability $p_s$")
-        ax.set_title(f"({'ab'[inits.index(init)]}) {init} start", fontsize=9)
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=7)
-        _broken_note(ax, points[points["init"] == init])
+        _finish_panel(ax, init, inits, points, r"$1/K_m$", r"slip probability $p_s$")
     return fig
 
 
