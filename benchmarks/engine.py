@@ -53,7 +53,7 @@ import numpy as np
 # the systems are built with the tests' geometry helpers (tests/engine/geometry.py)
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from granpipe.engine import BoxLaw, DrumLaw, StaticFrictionLaw
+from granpipe.engine import BoxLaw, DrumLaw
 
 DRUM_PARAMS = {"k_n": 565.97, "gamma_n": 8.7308, "gamma_t": 6.8927, "mu": 0.44}
 DRUM_LAW = DrumLaw(**DRUM_PARAMS)
@@ -171,10 +171,11 @@ def box_driven(skin=None, quick=False, pkg="granpipe"):
     return sim, state, period
 
 
-def static_friction(sim, state):
+def static_friction(sim, state, pkg="granpipe"):
     """The drum pile of ``state`` under the static-friction law (spin, shear history; the
-    spins start at rest): ``(simulation, state)``."""
-    ssim = sim.replace(law=StaticFrictionLaw(**DRUM_PARAMS))
+    spins start at rest) of package ``pkg``: ``(simulation, state)``."""
+    E, _ = _api(pkg)
+    ssim = sim.replace(law=E.StaticFrictionLaw(**DRUM_PARAMS))
     sstate = ssim.new_state(
         state.positions, state.radii, state.masses, velocities=state.velocities,
         spins=np.zeros(state.n), is_wall=state.is_wall,

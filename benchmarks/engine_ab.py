@@ -12,11 +12,12 @@ short chunks alternately (A B, then B A, ...). Both states are put on 64-byte ca
 (with the working tree's ``simulation._aligned``), so that the ratio measures code, not
 where ``malloc`` put the arrays.
 
-Systems: ``df`` drum forward, ``dt`` drum with tangent dynamics, ``bc`` box crystal,
-``bd`` driven box (a drive period split into ``rounds`` chunks). Printed per system: the
-fastest chunk and the median chunk of each version (ns per particle-step; drum per
-mobile disk) and the median of the per-round ratios new/old. The last line is one JSON
-object ``{system: ratio}``. Compare a revision with itself first (``REV`` = ``HEAD`` on a
+Systems: ``df`` drum forward, ``dt`` drum with tangent dynamics, ``st`` the drum pile
+under the static-friction law with tangent dynamics, ``bc`` box crystal, ``bd`` driven box
+(a drive period split into ``rounds`` chunks). Printed per system: the fastest chunk and
+the median chunk of each version (ns per particle-step; drum per mobile disk) and the
+median of the per-round ratios new/old. The last line is one JSON object
+``{system: ratio}``. Compare a revision with itself first (``REV`` = ``HEAD`` on a
 clean tree): the ratios then show the harness's own bias.
 """
 
@@ -43,7 +44,7 @@ import numpy as np
 from granpipe.engine.simulation import _aligned
 
 REPO = Path(__file__).resolve().parents[1]
-SYSTEMS = ("df", "dt", "bc", "bd")
+SYSTEMS = ("df", "dt", "st", "bc", "bd")
 
 
 def export(rev: str) -> str:
@@ -85,12 +86,14 @@ def systems(pkg: str, which, rounds: int) -> dict:
         state._s = _aligned(state._s)
         return state
 
-    for key in ("df", "dt"):
+    for key in ("df", "dt", "st"):
         if key in which:
             sim, st = bench.drum_system(pkg=pkg)
+            if key == "st":
+                sim, st = bench.static_friction(sim, st, pkg=pkg)
             st = aligned(st)
             kw = {}
-            if key == "dt":
+            if key != "df":
                 sim.random_tangent(st, np.random.default_rng(1))
                 kw = {"stride": 35, "tangent": True}
             sim.run(st, 35, **kw)
