@@ -730,6 +730,28 @@ def _repair_late(state, integ, work, t, tap_start, in_tap):
 
 
 @njit_inline
+def _any_candidate(G0, G1, muted):
+    """True if some event (j, k) is one that _first_event examines: not muted, start value
+    G0 below _BIG, end value G1 ≤ 0 and below G0. G0, G1 (N, 2) event values at the step
+    start and end (mixed units, see _event_scale); muted (N, 2) bool.
+
+    The cheap test before _first_event, as _any_late before _repair_late: inlined,
+    _first_event takes a reference to each of the dozen arrays it reads from the bundles,
+    and numba cannot prune those increfs/decrefs because its loop calls _locate (about 24
+    NRT calls per step, some 3 % of the chain's time); behind this test only steps with a
+    candidate pay them.
+    """
+    found = False
+    for j in range(G0.shape[0]):
+        for k in range(2):
+            g0 = G0[j, k]
+            g1 = G1[j, k]
+            if not (g0 >= _BIG or g1 > 0.0 or g1 >= g0 or muted[j, k]):
+                found = True
+    return found
+
+
+@njit_inline
 def _first_event(state, integ, work, t, hs, tap_start, in_tap, muted):
     """Earliest event of the RK4 step (t, t + hs]: (s, j, k), j = −1 if none.
 
@@ -793,12 +815,12 @@ def _advance(state, integ, work, t, t_end, tap_start, in_tap, step0):
     """Integrate from t to t_end (no drive switch inside) with located mode switches.
 
     Each step: repair late modes (_repair_late), one RK4 step of h (the last one up to
-    t_end), the earliest event in it (_first_event); without one the step is taken, with
-    one the step is redone up to the event and the event processed (_process_event).
-    More than ZENO_MAX_TINY consecutive event steps shorter than TINY_STEP × h stop the
-    run (STATUS_ZENO). state : ChainState, integ : Integrator, work : WorkBuffers;
-    t, t_end, tap_start [time]; in_tap bool; step0 steps so far. Returns (t, status,
-    particle, steps).
+    t_end), the earliest event in it (_first_event, if _any_candidate); without one the
+    step is taken, with one the step is redone up to the event and the event processed
+    (_process_event). More than ZENO_MAX_TINY consecutive event steps shorter than
+    TINY_STEP × h stop the run (STATUS_ZENO). state : ChainState, integ : Integrator,
+    work : WorkBuffers; t, t_end, tap_start [time]; in_tap bool; step0 steps so far.
+    Returns (t, status, particle, steps).
     """
     y, v, dy, dv, modes = state
     par, h, _, tangent, saltation, _, _, vscale = integ
@@ -808,6 +830,9 @@ def _advance(state, integ, work, t, t_end, tap_start, in_tap, step0):
     n_tiny = 0
     # an immediate event that changed no mode is not retried before the next full step
     muted = np.zeros((n, 2), dtype=np.bool_)
+    # the RK4 end state, W rows made views once (a view per step is an incref/decref pair)
+    y1 = W[W_Y1]
+    v1 = W[W_V1]
     while t_end - t > END_TOL * h:
         if not in_tap and _at_rest(v, modes):
             # Every contact stuck and the floor still: the state is exactly static (all
@@ -822,8 +847,10 @@ def _advance(state, integ, work, t, t_end, tap_start, in_tap, step0):
         if _any_late(G0, modes, par, vscale):
             _repair_late(state, integ, work, t, tap_start, in_tap)
         _rk4_step(y, v, dy, dv, t, hs, tap_start, in_tap, par, modes, tangent, W)
-        _event_values(W[W_Y1], W[W_V1], t + hs, tap_start, in_tap, par, modes, W, G1)
-        s_best, jb, kb = _first_event(state, integ, work, t, hs, tap_start, in_tap, muted)
+        _event_values(y1, v1, t + hs, tap_start, in_tap, par, modes, W, G1)
+        s_best, jb, kb = 2.0 * hs, -1, -1
+        if _any_candidate(G0, G1, muted):
+            s_best, jb, kb = _first_event(state, integ, work, t, hs, tap_start, in_tap, muted)
         if jb < 0:
             _take_step(y, v, dy, dv, W, tangent)
             t += hs
