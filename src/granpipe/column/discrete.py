@@ -572,8 +572,10 @@ def _snap_blocks(v, dv, t, tap_start, in_tap, par, modes, tangent):
 
 
 @njit
-def _check_state(y, t, par, yf, step):
-    """Status and particle index: overlap past a centre (pass-through) or non-finite."""
+def _check_state(y, t, tap_start, in_tap, par):
+    """Status and particle index at the end of a step at ``t``: overlap past a centre or
+    past the floor (pass-through) or non-finite."""
+    yf, _, _ = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
     n = y.size
     for i in range(n):
         if not math.isfinite(y[i]):
@@ -874,8 +876,7 @@ def _advance(state, integ, work, t, t_end, tap_start, in_tap, step0):
                     return t, STATUS_ZENO, jb, steps
             else:
                 n_tiny = 0
-        yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
-        status, who = _check_state(y, t, par, yf, steps)
+        status, who = _check_state(y, t, tap_start, in_tap, par)
         if status != STATUS_OK:
             return t, status, who, steps
     return t, STATUS_OK, -1, steps
@@ -1001,8 +1002,7 @@ def _advance_smooth(state, integ, work, t, t_end, tap_start, in_tap, step0):
         t += hs
         steps += 1
         stats[S_STEPS] += 1
-        yf, vf, af = floor_motion(t, tap_start, in_tap, par[P_A], par[P_OMEGA])
-        status, who = _check_state(y, t, par, yf, steps)
+        status, who = _check_state(y, t, tap_start, in_tap, par)
         if status != STATUS_OK:
             return t, status, who, steps
     return t, STATUS_OK, -1, steps
