@@ -25,6 +25,7 @@ and snapshots (positions + order codes). :func:`save` writes PNG and PDF atomica
 from __future__ import annotations
 
 import re
+import textwrap
 
 import matplotlib
 
@@ -62,9 +63,11 @@ CRITERION_COLORS = {
 
 
 def _reading(fig, reading: str | None):
-    """The record and the fit readings a figure shows, as a small title over it."""
+    """The record and the fit readings a figure shows, as a small title over it, wrapped
+    to the figure's width (a wider title would squeeze the panels)."""
     if reading:
-        fig.suptitle(reading, fontsize=7, color="0.3")
+        width = max(40, int(fig.get_figwidth() * 18))  # characters of 7 pt per inch
+        fig.suptitle(textwrap.fill(reading, width), fontsize=7, color="0.3")
 
 
 def _nl_colors(n_ls):
