@@ -36,6 +36,10 @@ from pathlib import Path
 # One BLAS thread before numpy loads (see benchmarks/engine.py).
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
+# The two packages' kernels compiled into a cache of this script's own, before numba
+# loads: written beside the working tree's sources, the machine code of kernels that
+# met the other package's types made later processes fail to load their cache.
+os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(tempfile.gettempdir(), "granpipe_ab_cache"))
 
 import engine as bench
 import numba
