@@ -457,7 +457,7 @@ CRITERIA = {
     "rolls": ("roll_level", None, "linear"),
 }
 """Onset criteria: (table column, detection key of its level, interpolation scale); the
-rolls' column is :func:`roll_levels`', rolls where it reaches 1 (no key)."""
+rolls' column is :func:`roll_levels`, rolls where it reaches 1 (no key)."""
 
 
 THRESHOLD_COLUMNS = (

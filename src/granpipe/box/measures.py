@@ -303,7 +303,8 @@ def roll_level(score: float, displacement: float, detection: Mapping) -> float:
     level = score / float(detection["roll_significance"])
     d_min = float(detection["roll_displacement"])
     if d_min > 0:
-        level = min(level, displacement / d_min)
+        rise = displacement / d_min
+        level = math.nan if math.isnan(rise) else min(level, rise)
     return float(level)
 
 
