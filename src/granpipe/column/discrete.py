@@ -732,6 +732,13 @@ def _repair_late(state, integ, work, t, tap_start, in_tap):
 
 
 @njit_inline
+def _skipped(g0, g1, muted):
+    """An event that no step examines: unused (g0 at _BIG), not crossed within the step
+    (g1 > 0 or not below g0) or muted."""
+    return g0 >= _BIG or g1 > 0.0 or g1 >= g0 or muted
+
+
+@njit_inline
 def _any_candidate(G0, G1, muted):
     """True if some event (j, k) is one that _first_event examines: not muted, start value
     G0 below _BIG, end value G1 ≤ 0 and below G0. G0, G1 (N, 2) event values at the step
@@ -748,7 +755,7 @@ def _any_candidate(G0, G1, muted):
         for k in range(2):
             g0 = G0[j, k]
             g1 = G1[j, k]
-            if not (g0 >= _BIG or g1 > 0.0 or g1 >= g0 or muted[j, k]):
+            if not _skipped(g0, g1, muted[j, k]):
                 found = True
     return found
 
@@ -775,7 +782,7 @@ def _first_event(state, integ, work, t, hs, tap_start, in_tap, muted):
         for k in range(2):
             g0 = G0[j, k]
             g1 = G1[j, k]
-            if g0 >= _BIG or g1 > 0.0 or g1 >= g0 or muted[j, k]:
+            if _skipped(g0, g1, muted[j, k]):
                 continue
             if g0 > 0.0:
                 s = _locate(j, k, g0, g1, state, par, t, hs, tap_start, in_tap, W, Gt)
