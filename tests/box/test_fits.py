@@ -361,6 +361,56 @@ def test_the_crystals_regions_split_at_its_convection_onset():
         fits.slip_fits(table, tf, {**base, "crystal_regions": "slips"})
 
 
+def test_the_crystals_regions_split_by_each_replicas_own_convection():
+    """``crystal_regions: replica``: at every Γ above the first T_g* break two replicas of
+    each crystal point stay unconvected and slip with a barrier of 30, two convect
+    (s_c 5 σ) and slip with one of 7. Split per replica, A2 recovers 30 and B 7 exactly;
+    at the second T_g* break (the default) each region mixes both kinds of replica
+    (one line through both: the barriers' mean)."""
+    table = _table(5)
+    conv = (False, False, True, True)
+    E = np.where(conv, 7.0, 30.0)
+    rows = {c: [] for c in ("p_s", "s_c", "n_trials")}
+    for K in table["K_m"]:
+        p = 0.0 if K <= K_BREAK["crystal"][0] else 0.5 * np.exp(-E / K)
+        rows["p_s"].append(tuple(np.broadcast_to(p, 4)))
+        rows["s_c"].append(tuple(np.where(conv, 5.0, 0.1)))
+        rows["n_trials"].append((1.0e9,) * 4)
+    table = table.assign(
+        replicas=4,
+        p_s_replica=rows["p_s"],
+        p_s_sem_replica=[(np.nan,) * 4] * len(table),
+        n_slips_replica=[tuple(1e9 * np.asarray(p)) for p in rows["p_s"]],
+        n_trials_replica=rows["n_trials"],
+        s_c_replica=rows["s_c"],
+        convecting_replica=[conv] * len(table),
+    )
+    key = ("crystal", 40, Walls(0.6, "shaken", "lever"))
+    base = {**FITS, "slip_weights": "unweighted", "crystal_points": "initialisation"}
+    tf = fits.temperature_fits(table, base, DETECTION)
+    by = fits.slip_fits(table, tf, {**base, "crystal_regions": "replica"})[key]
+    above = ((table["init"] == "crystal") & (table["N_l"] == 40)
+             & (table["K_m"] > tf[key]["breakpoints_K_m"][0])).sum()  # fmt: skip
+    assert by["A2"].E_b == pytest.approx(30.0, rel=1e-9)
+    assert by["B"].E_b == pytest.approx(7.0, rel=1e-9)
+    assert by["A2"].n_points == by["B"].n_points == 2 * above
+    temp = fits.slip_fits(table, tf, {**base, "slip_replicas": "each"})[key]
+    # one line through both kinds of replica: the mean of the barriers, in both regions
+    assert temp["A2"].E_b == pytest.approx(18.5, rel=1e-9)
+    assert temp["B"].E_b == pytest.approx(18.5, rel=1e-9)
+    assert by["all"].E_b == pytest.approx(temp["all"].E_b, rel=1e-12)
+    # the random start keeps its pooled points
+    rkey = ("random", 40, Walls(0.6, "shaken", "lever"))
+    pooled = fits.slip_fits(table, tf, base)[rkey]["all"]
+    assert (
+        fits.slip_fits(table, tf, {**base, "crystal_regions": "replica"})[rkey]["all"].n_points
+        == pooled.n_points
+    )
+    no_s_c = table.drop(columns=["convecting_replica"])
+    refused = fits.slip_fits(no_s_c, tf, {**base, "crystal_regions": "replica"})[key]
+    assert math.isnan(refused["A2"].E_b) and "per-replica s_c" in refused["B"].note
+
+
 def test_wall_settings_are_separate_groups():
     a, b = _table(6, mu_w=0.6), _table(7, mu_w=0.0)
     c = _table(8, mu_w=0.6, side_walls="still")

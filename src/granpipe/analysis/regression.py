@@ -66,6 +66,7 @@ __all__ = [
     "loglog_segmented",
     "ArrheniusFit",
     "arrhenius_fit",
+    "arrhenius_by_label",
     "arrhenius_by_region",
     "zero_count_upper_bound",
 ]
@@ -785,10 +786,21 @@ def arrhenius_by_region(
         names = {0: ["all"], 1: ["A", "B"], 2: ["A1", "A2", "B"]}.get(len(bps))
     if names is None or len(names) != len(bps) + 1:
         raise ValueError("give one name per region")
-    edges = np.concatenate([[-np.inf], bps, [np.inf]])
+    labels = np.where(np.isfinite(K), np.searchsorted(bps, K, side="left"), -1)
+    return arrhenius_by_label(K, labels, names, **kwargs)
+
+
+def arrhenius_by_label(
+    K_m: np.ndarray, labels: np.ndarray, names: list[str], **kwargs
+) -> dict[str, ArrheniusFit]:
+    """One Arrhenius fit per region, each point's region given by ``labels`` (n,) int, an
+    index into ``names`` (−1: in none); array keyword arguments are split the same way
+    (:func:`arrhenius_by_region` labels by K_m alone)."""
+    K = np.asarray(K_m, dtype=np.float64)
+    labels = np.asarray(labels)
     out = {}
     for r, name in enumerate(names):
-        m = (K > edges[r]) & (K <= edges[r + 1])
+        m = labels == r
         sub = {
             key: (np.asarray(v)[m] if isinstance(v, (np.ndarray, list, tuple)) else v)
             for key, v in kwargs.items()

@@ -376,7 +376,9 @@ def points_table(
     record length n of ``records`` (:func:`convection_after`, :func:`rolls_after`,
     :func:`roll_displacement_after`), ``p_s_<a>_<b>`` for each window [a, b) of measured
     periods of ``slip_windows`` (:func:`slips_between`), and the roll criterion under
-    ``detection`` over the whole record and each record length (:func:`roll_levels`)."""
+    ``detection`` over the whole record and each record length (:func:`roll_levels`);
+    ``<column>_replica`` per replica (a tuple) of the slip columns and s_c, and
+    ``convecting_replica``: each replica's own s_c at least ``detection.convection_s_c``."""
     rows = []
     for f in files:
         ds = read_dataset(f)
@@ -398,7 +400,7 @@ def points_table(
         }
         for c in _COLUMNS:
             row[c] = float(ds[c].values)
-        for c in _FLIGHT:
+        for c in (*_FLIGHT, "s_c"):
             row[f"{c}_replica"] = _replica_values(ds, f"{c}_replica", c)
         for n in records:
             row[f"s_c_{int(n)}"] = convection_after(ds["s_j"].values, int(n))
@@ -411,6 +413,8 @@ def points_table(
         row.update(phase_slip_columns(ds))
         rows.append(row)
     table = roll_levels(pd.DataFrame(rows), detection)
+    level = float(detection["convection_s_c"])
+    table["convecting_replica"] = [tuple(bool(v >= level) for v in s) for s in table["s_c_replica"]]
     table["used"] = used_mask(table, crystal_points)
     order = ["init", *WALL_COLUMNS, "N_l", "Gamma"]
     return table.sort_values(order, kind="stable").reset_index(drop=True)
@@ -640,12 +644,33 @@ def _slip_data(g: pd.DataFrame, each: bool) -> tuple[np.ndarray, dict]:
     return np.repeat(g["K_m"].to_numpy(), n), cols
 
 
-CRYSTAL_REGIONS = ("temperature", "convection")
+CRYSTAL_REGIONS = ("temperature", "convection", "replica")
 """Where the crystal's region A2 ends and B begins in the barrier fits
 (``fits.crystal_regions``): at the second T_g* break (Fig. 5's dashed lines are "the
-regions defined in Fig. 4"), or at the crystal's convection onset by Eq. (B2) (the paper
-has B begin "upon the onset of convection"); the two coincide in the paper, not
-necessarily here. A1 ends at the first T_g* break either way."""
+regions defined in Fig. 4"), at the crystal's convection onset by Eq. (B2) (the paper
+has B begin "upon the onset of convection"; the two coincide in the paper, not
+necessarily here), or per replica (``replica``): above the first break each replica of a
+crystal point is its own point of the fit, in B if its own s_c reaches the convection
+level (``detection.convection_s_c``), else in A2 (where crystals nucleate defects, one
+replica may convect while another stays intact at the same Γ). A1 ends at the first T_g*
+break in every reading."""
+
+
+def _replica_regions(g: pd.DataFrame, keep: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """(kept replicas,) int: the region of each replica of the group's points under the
+    ``replica`` reading of :data:`CRYSTAL_REGIONS` (the regions below the last break by
+    K_m; above it, the last region if the replica convects), in :func:`_slip_data`'s
+    order with ``keep`` applied."""
+    if "convecting_replica" not in g:
+        raise ValueError("the points carry no per-replica s_c: A2 and B cannot be split by "
+                         "replica (fits.crystal_regions: replica)")  # fmt: skip
+    K, _ = _slip_data(g, True)
+    convecting = np.concatenate([np.asarray(v, dtype=bool) for v in g["convecting_replica"]])
+    if len(convecting) != len(K):
+        raise ValueError("convecting_replica and p_s_replica differ in length")
+    below = np.searchsorted(np.sort(bounds)[:-1], K, side="left")
+    last = len(bounds) - 1
+    return np.where(below == last, below + convecting, below)[keep]
 
 
 def _onset_bounds(bounds: np.ndarray, k_onset: float | None) -> np.ndarray:
@@ -674,7 +699,8 @@ def slip_fits(
     ``<region>_<other reading>``, the other; the fitted points are those of
     ``fits.slip_replicas`` (:data:`SLIP_REPLICAS`), the crystal's regions those of
     ``fits.crystal_regions`` (:data:`CRYSTAL_REGIONS`; ``onsets`` from
-    :func:`convection_onsets` for the reading ``convection``)."""
+    :func:`convection_onsets` for the reading ``convection``; under ``replica`` the
+    crystal's points are its replicas whatever ``fits.slip_replicas`` says)."""
     level = float(fits_cfg["confidence"])
     main = str(fits_cfg.get("slip_weights", "unweighted"))
     if main not in SLIP_WEIGHTS:
@@ -689,7 +715,8 @@ def slip_fits(
     by_onset = regions == "convection"
     out = {}
     for init, n_l, walls, g in _groups(table):
-        K, kw = _slip_data(g, each == "each")
+        by_replica = init == "crystal" and regions == "replica"
+        K, kw = _slip_data(g, each == "each" or by_replica)
         keep = np.isfinite(kw["p_s"]) & (kw["n_trials"] > 0)
         K = K[keep]
         kw = {k: v[keep] for k, v in kw.items()}
@@ -717,7 +744,15 @@ def slip_fits(
                 bounds = tf["breakpoints_K_m"]
                 if init == "crystal" and by_onset and len(bounds) == 2:
                     bounds = _onset_bounds(bounds, (onsets or {}).get((init, n_l, walls)))
-                by = regression.arrhenius_by_region(K, bounds, tf["regions"], level=level, **args)
+                if by_replica:
+                    labels = _replica_regions(g, keep, bounds)
+                    by = regression.arrhenius_by_label(
+                        K, labels, tf["regions"], level=level, **args
+                    )
+                else:
+                    by = regression.arrhenius_by_region(
+                        K, bounds, tf["regions"], level=level, **args
+                    )
             except ValueError as exc:
                 by = {r: regression.ArrheniusFit.refused(level, str(exc)) for r in tf["regions"]}
             fits.update({f"{r}{suffix}": f for r, f in by.items()})
