@@ -40,6 +40,11 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 # loads: written beside the working tree's sources, the machine code of kernels that
 # met the other package's types made later processes fail to load their cache.
 os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(tempfile.gettempdir(), "granpipe_ab_cache"))
+# Every exported revision importable before any kernel loads: the pickled index of a
+# cached kernel can name a type of the package it was compiled beside, and unpickling
+# it needs that package.
+ROOT = Path(tempfile.gettempdir()) / "granpipe_ab"
+sys.path.insert(0, str(ROOT))
 
 import engine as bench
 import numba
@@ -60,10 +65,9 @@ def export(rev: str) -> str:
         text=True,
     ).stdout.strip()
     name = f"granpipe_ab_{sha}"
-    root = Path(tempfile.gettempdir()) / "granpipe_ab"
-    pkg = root / name
+    pkg = ROOT / name
     if not pkg.exists():
-        tmp = root / f".{name}.tmp"
+        tmp = ROOT / f".{name}.tmp"
         tmp.mkdir(parents=True, exist_ok=True)
         archive = subprocess.run(
             ["git", "-C", str(REPO), "archive", sha, "src/granpipe"],
@@ -77,7 +81,6 @@ def export(rev: str) -> str:
             text = re.sub(r"\bfrom granpipe import\b", f"from {name} import", text)
             path.write_text(text)
         (tmp / "src" / "granpipe").rename(pkg)
-    sys.path.insert(0, str(root))
     return name
 
 
