@@ -358,7 +358,50 @@ def test_the_crystals_regions_split_at_its_convection_onset():
     none = fits.slip_fits(table, tf, {**base, "crystal_regions": "convection"}, {})[key]
     assert math.isnan(none["A2"].E_b) and "onset" in none["B"].note
     with pytest.raises(ValueError, match="crystal_regions"):
-        fits.slip_fits(table, tf, {**base, "crystal_regions": "slips"})
+        fits.slip_fits(table, tf, {**base, "crystal_regions": "bogus"})
+
+
+def test_the_crystals_regions_split_where_its_slip_curve_bends():
+    """``crystal_regions: slips``: the crystal slips with a barrier of 100 up to K_m = 9
+    and of 7 above (continuous there), its second T_g* break at K_m 6. The two-segment fit
+    of ln p_s against 1/K_m finds the bend at 9 and the regions split there recover both
+    barriers exactly; the T_g* split mixes them. Too few slipping points refuse A2 and B,
+    saying why, and keep the bend's row."""
+    table = _table(6)
+    crystal = table["init"] == "crystal"
+    K = table["K_m"].to_numpy()
+    law = 0.5 * np.exp(-7.0 / 9.0) * np.exp(np.where(K <= 9.0, -100.0 / K + 100.0 / 9.0,
+                                                     -7.0 / K + 7.0 / 9.0))  # fmt: skip
+    p = np.where(crystal & (K > K_BREAK["crystal"][0]), law, table["p_s"])
+    table = table.assign(p_s=p, n_trials=1e30, n_slips=p * 1e30, p_s_sem=np.nan)
+    key = ("crystal", 40, Walls(0.6, "shaken", "lever"))
+    cfg = {**FITS, "slip_weights": "unweighted", "crystal_points": "initialisation",
+           "crystal_regions": "slips"}  # fmt: skip
+    tf = fits.temperature_fits(table, cfg, DETECTION)
+    bends = fits.slip_bends(table, tf, cfg)
+    assert bends[key]["K_m"] == pytest.approx(9.0, rel=1e-3)
+    lo, hi = bends[key]["K_m_ci"]
+    assert lo <= hi and bends[key]["n_points"] == 13  # the 13 slipping points above K_m 2
+    by = fits.slip_fits(table, tf, cfg, None, bends)[key]
+    assert by["A2"].E_b == pytest.approx(100.0, rel=1e-6)
+    assert by["B"].E_b == pytest.approx(7.0, rel=1e-6)
+    temp = fits.slip_fits(table, tf, {**cfg, "crystal_regions": "temperature"})[key]
+    assert temp["B"].E_b > 20.0  # B from K_m 6 holds points of the steep branch
+    assert fits.slip_bends(table, tf, {**cfg, "crystal_regions": "replica"}) == {}
+    rows = {r["quantity"]: r for r in fits.summary_rows(table, fits.thresholds_table(
+        table, DETECTION), tf, fits.slip_fits(table, tf, cfg, None, bends), bends)}  # fmt: skip
+    assert rows[fits._fmt_q("K_m_slip_bend", *key)]["value"] == pytest.approx(9.0, rel=1e-3)
+    few = table[~crystal | (table["Gamma"] <= 2.2)]
+    tf_few = fits.temperature_fits(few, cfg, DETECTION)
+    bends_few = fits.slip_bends(few, tf_few, cfg)
+    assert "too few" in bends_few[key]["error"]
+    refused = fits.slip_fits(few, tf_few, cfg, None, bends_few)[key]
+    assert math.isnan(refused["A2"].E_b) and "too few" in refused["B"].note
+    ds = fits.fits_datasets(few, fits.thresholds_table(few, DETECTION), tf_few,
+                            {key: refused}, bends_few)["slips"]  # fmt: skip
+    row = ds["name"].to_numpy() == "K_m_bend"
+    assert row.sum() == 2  # one per N_l of the crystal
+    assert all("too few" in str(n) for n in ds["note"].to_numpy()[row])
 
 
 def test_the_crystals_regions_split_by_each_replicas_own_convection():

@@ -60,6 +60,7 @@ __all__ = [
     "thresholds_table",
     "temperature_fits",
     "slip_fits",
+    "slip_bends",
     "summary_rows",
     "used_mask",
     "convection_after",
@@ -644,16 +645,64 @@ def _slip_data(g: pd.DataFrame, each: bool) -> tuple[np.ndarray, dict]:
     return np.repeat(g["K_m"].to_numpy(), n), cols
 
 
-CRYSTAL_REGIONS = ("temperature", "convection", "replica")
+CRYSTAL_REGIONS = ("temperature", "convection", "replica", "slips")
 """Where the crystal's region A2 ends and B begins in the barrier fits
 (``fits.crystal_regions``): at the second T_g* break (Fig. 5's dashed lines are "the
 regions defined in Fig. 4"), at the crystal's convection onset by Eq. (B2) (the paper
 has B begin "upon the onset of convection"; the two coincide in the paper, not
-necessarily here), or per replica (``replica``): above the first break each replica of a
+necessarily here), per replica (``replica``): above the first break each replica of a
 crystal point is its own point of the fit, in B if its own s_c reaches the convection
 level (``detection.convection_s_c``), else in A2 (where crystals nucleate defects, one
-replica may convect while another stays intact at the same Γ). A1 ends at the first T_g*
-break in every reading."""
+replica may convect while another stays intact at the same Γ), or where the slip curve
+itself bends (``slips``): the break of a continuous two-segment fit of ln p_s against
+1/K_m over the slipping points above the first T_g* break (A2's "steep increase of slip
+events, which slows down considerably" in B, the paper's Sec. IV; :func:`slip_bends`).
+A1 ends at the first T_g* break in every reading."""
+
+SLIP_BEND_MIN_POINTS = 3
+"""Fewest slipping points on either side of the crystal's slip bend (``slips`` reading):
+each segment must show its own slope."""
+
+
+def slip_bends(table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping) -> dict:
+    """(init, N_l, walls) -> the crystal's slip bend under ``fits.crystal_regions: slips``
+    ({} under the other readings): {"K_m", "K_m_ci" (2,), "n_points"} from
+    :func:`granpipe.analysis.regression.segmented_fit` with one break of y = ln p_s
+    against x = 1/K_m (its profile-likelihood interval at ``fits.confidence``), over the
+    points of ``fits.slip_replicas`` with p_s > 0 above the first T_g* break; {"error"}
+    where it cannot be fitted, saying why."""
+    if str(fits_cfg.get("crystal_regions", "temperature")) != "slips":
+        return {}
+    each = str(fits_cfg.get("slip_replicas", "pooled")) == "each"
+    level = float(fits_cfg["confidence"])
+    out = {}
+    for init, n_l, walls, g in _groups(table):
+        tf = tfits.get((init, n_l, walls)) or {}
+        if init != "crystal" or tf.get("n_breakpoints", 0) != 2:
+            continue
+        if "fit" not in tf:
+            out[(init, n_l, walls)] = {"error": f"no temperature fit: {tf.get('error')}"}
+            continue
+        K, kw = _slip_data(g, each)
+        p = kw["p_s"]
+        use = np.isfinite(p) & (p > 0) & (K > tf["breakpoints_K_m"][0])
+        if use.sum() < 2 * SLIP_BEND_MIN_POINTS:
+            out[(init, n_l, walls)] = {
+                "error": f"{int(use.sum())} slipping points above the first T_g* break are too "
+                f"few for the slip bend ({2 * SLIP_BEND_MIN_POINTS} needed; "
+                "fits.crystal_regions: slips)"
+            }
+            continue
+        seg = regression.segmented_fit(
+            1.0 / K[use], np.log(p[use]), 1, min_points=SLIP_BEND_MIN_POINTS, level=level
+        )
+        psi, (lo, hi) = float(seg.breakpoints[0]), seg.breakpoint_ci[0]
+        out[(init, n_l, walls)] = {
+            "K_m": 1.0 / psi,
+            "K_m_ci": np.array([1.0 / hi, 1.0 / lo]),
+            "n_points": int(use.sum()),
+        }
+    return out
 
 
 def _replica_regions(g: pd.DataFrame, keep: np.ndarray, bounds: np.ndarray) -> np.ndarray:
@@ -671,6 +720,15 @@ def _replica_regions(g: pd.DataFrame, keep: np.ndarray, bounds: np.ndarray) -> n
     below = np.searchsorted(np.sort(bounds)[:-1], K, side="left")
     last = len(bounds) - 1
     return np.where(below == last, below + convecting, below)[keep]
+
+
+def _bend_bounds(bounds: np.ndarray, bend: Mapping | None) -> np.ndarray:
+    """The crystal's region bounds in K_m with A2/B moved to its slip bend."""
+    if not bend:
+        raise ValueError("no slip bend was fitted (fits.crystal_regions: slips)")
+    if "error" in bend:
+        raise ValueError(bend["error"])
+    return np.array([bounds[0], bend["K_m"]])
 
 
 def _onset_bounds(bounds: np.ndarray, k_onset: float | None) -> np.ndarray:
@@ -692,14 +750,19 @@ def convection_onsets(ths: pd.DataFrame) -> dict:
 
 
 def slip_fits(
-    table: pd.DataFrame, tfits: Mapping, fits_cfg: Mapping, onsets: Mapping | None = None
+    table: pd.DataFrame,
+    tfits: Mapping,
+    fits_cfg: Mapping,
+    onsets: Mapping | None = None,
+    bends: Mapping | None = None,
 ) -> dict:
     """Arrhenius fits per group: {(init, N_l, walls): {region: ArrheniusFit}} incl. "all",
     in the reading of ``fits.slip_weights`` (:data:`SLIP_WEIGHTS`) and, under
     ``<region>_<other reading>``, the other; the fitted points are those of
     ``fits.slip_replicas`` (:data:`SLIP_REPLICAS`), the crystal's regions those of
     ``fits.crystal_regions`` (:data:`CRYSTAL_REGIONS`; ``onsets`` from
-    :func:`convection_onsets` for the reading ``convection``; under ``replica`` the
+    :func:`convection_onsets` for the reading ``convection``, ``bends`` from
+    :func:`slip_bends` for the reading ``slips``; under ``replica`` the
     crystal's points are its replicas whatever ``fits.slip_replicas`` says)."""
     level = float(fits_cfg["confidence"])
     main = str(fits_cfg.get("slip_weights", "unweighted"))
@@ -744,6 +807,8 @@ def slip_fits(
                 bounds = tf["breakpoints_K_m"]
                 if init == "crystal" and by_onset and len(bounds) == 2:
                     bounds = _onset_bounds(bounds, (onsets or {}).get((init, n_l, walls)))
+                if init == "crystal" and regions == "slips" and len(bounds) == 2:
+                    bounds = _bend_bounds(bounds, (bends or {}).get((init, n_l, walls)))
                 if by_replica:
                     labels = _replica_regions(g, keep, bounds)
                     by = regression.arrhenius_by_label(
@@ -762,7 +827,7 @@ def slip_fits(
                  if f"{c}{r}_flight" in table.columns]  # fmt: skip
         flight = table.assign(**{c: table[f"{c}_flight"] for c in names})
         flight = flight.drop(columns=[f"{c}_flight" for c in names])
-        for key, fl in slip_fits(flight, tfits, fits_cfg, onsets).items():
+        for key, fl in slip_fits(flight, tfits, fits_cfg, onsets, bends).items():
             out.setdefault(key, {}).update({f"{r}_flight": f for r, f in fl.items()})
     return out
 
@@ -787,9 +852,14 @@ def _walls_of(row) -> Walls:
 
 
 def summary_rows(
-    table: pd.DataFrame, ths: pd.DataFrame, tfits: Mapping, sfits: Mapping
+    table: pd.DataFrame,
+    ths: pd.DataFrame,
+    tfits: Mapping,
+    sfits: Mapping,
+    bends: Mapping | None = None,
 ) -> list[dict]:
-    """Rows of ``summary.csv`` (docs/results.md); quantities name N_l and init."""
+    """Rows of ``summary.csv`` (docs/results.md); quantities name N_l and init; the
+    crystal's slip bend (``K_m_slip_bend``) where ``bends`` (:func:`slip_bends`) has it."""
     rows = []
     windows = [c for c in table.columns if re.fullmatch(r"p_s_\d+_\d+", c)]
     phases = [c for c in table.columns if re.fullmatch(r"p_s_phase_\d+of\d+", c)]
@@ -856,6 +926,12 @@ def summary_rows(
         for region, af in fits.items():
             paper = _paper(PAPER.get(f"E_b_{init}_{region}"), walls)
             rows.append(af.summary_row("box", _fmt_q(f"E_b_{region}", init, n_l, walls), paper))
+    for (init, n_l, walls), bend in (bends or {}).items():
+        lo, hi = bend.get("K_m_ci", (None, None))
+        rows.append(
+            summary_row("box", _fmt_q("K_m_slip_bend", init, n_l, walls), bend.get("K_m"), "1",
+                        ci_low=lo, ci_high=hi, n=bend.get("n_points"))
+        )  # fmt: skip
     return rows
 
 
@@ -882,7 +958,11 @@ _TEXT_COLUMNS = {
 
 
 def fits_datasets(
-    table: pd.DataFrame, ths: pd.DataFrame, tfits: Mapping, sfits: Mapping
+    table: pd.DataFrame,
+    ths: pd.DataFrame,
+    tfits: Mapping,
+    sfits: Mapping,
+    bends: Mapping | None = None,
 ) -> dict[str, xr.Dataset]:
     """Labelled datasets for ``fits/phase_diagram.nc``, ``temperature.nc``, ``slips.nc``."""
 
@@ -960,6 +1040,10 @@ def fits_datasets(
                 (init, n_l, *walls, f"log_A_{region}", 0, af.log_A, af.log_A_se, np.nan, np.nan,
                  af.note)
             )  # fmt: skip
+    for (init, n_l, walls), bend in (bends or {}).items():  # the crystal's A2/B bound
+        lo, hi = bend.get("K_m_ci", (np.nan, np.nan))
+        srows.append((init, n_l, *walls, "K_m_bend", 0, bend.get("K_m", np.nan), np.nan, lo, hi,
+                      bend.get("error", "")))  # fmt: skip
     slips = _rows_dataset(srows, "Arrhenius fit p_s = A exp(-E_b/K_m)")
     return {"phase_diagram": phase, "temperature": temp, "slips": slips}
 

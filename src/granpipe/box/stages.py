@@ -526,8 +526,9 @@ def fits_stage(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         tfits = fits.temperature_fits(table, params["fits"], params["detection"])
-        sfits = fits.slip_fits(table, tfits, params["fits"], fits.convection_onsets(ths))
-    datasets = fits.fits_datasets(table, ths, tfits, sfits)
+        bends = fits.slip_bends(table, tfits, params["fits"])
+        sfits = fits.slip_fits(table, tfits, params["fits"], fits.convection_onsets(ths), bends)
+    datasets = fits.fits_datasets(table, ths, tfits, sfits, bends)
     written = []
     for name, ds in datasets.items():
         written.append(
@@ -535,7 +536,7 @@ def fits_stage(
                 ds, out_dir / f"{name}.nc", config_subset=params, study="box", stage="fits"
             )
         )
-    rows = fits.summary_rows(table, ths, tfits, sfits)
+    rows = fits.summary_rows(table, ths, tfits, sfits, bends)
     written.append(write_summary(rows, out_dir / "summary.csv", merge=False))
     written.append(write_summary(fits.cost_rows(table), out_dir / "costs.csv", merge=False))
     if log:

@@ -322,6 +322,9 @@ def fig5_slip_probability(
             s = slips[(slips["init"] == init) & (slips["N_l"] == n_l)]
             t = _fitted(temperature, init, n_l)
             bps = np.sort(t[t["name"] == "breakpoint"]["value"].to_numpy())
+            bend = s[s["name"] == "K_m_bend"]["value"].to_numpy()  # A2/B at the slip bend
+            if len(bps) == 2 and bend.size and np.isfinite(bend[0]):
+                bps = np.array([bps[0], bend[0]])
             regions = [
                 r.removeprefix("slope_")
                 for r in t[t["name"].str.startswith("slope_")].sort_values("index")["name"]
@@ -329,7 +332,7 @@ def fig5_slip_probability(
             for b in bps:
                 ax.axvline(1.0 / b, color="k", ls="--", lw=0.9)
             edges = np.concatenate([[0.0], bps, [np.inf]])
-            kall = g["K_m"].to_numpy()
+            kall = g["K_m"].to_numpy()[pos]  # each line over the points it fits (p_s > 0)
             labels = [f"Arrhenius fits, $N_l$ = {int(n_l)}:"]
             # random: one curve over the whole range (as the paper); crystal: per region
             draw = ["all"] if (init == "random" or not regions) else regions
